@@ -1,0 +1,152 @@
+//! Conventions, type aliases and the small geometric helpers every module shares.
+//!
+//! These conventions are written once, here, and followed by the whole crate (DESIGN.md, principle 7):
+//!
+//! * **Units**: SI everywhere — metres, radians, seconds. Velocities are m/s and rad/s. Pixels appear only in
+//!   [`crate::camera`]; every other module works with normalised image coordinates `x = X/Z`, `y = Y/Z`.
+//! * **Twists** are 6-vectors `(v, ω)`: linear velocity **first**, then angular velocity, both expressed in one frame
+//!   (as ViSP's `vpColVector` velocity screws). See [`Twist`].
+//! * **Transforms**: a variable `a_from_b: Isometry3<f64>` (ViSP `aMb`) maps the coordinates of a point in frame `b` to
+//!   its coordinates in frame `a`: `p_a = a_from_b * p_b`. Composition reads right to left:
+//!   `a_from_c = a_from_b * b_from_c`.
+//! * **Twist transforms**: `a_v_b` (ViSP `aVb`, a 6×6 [`TwistTransform`]) maps a twist of a rigid body expressed in frame
+//!   `b` to the same rigid-body motion expressed in frame `a`: `v_a = a_v_b · v_b` (MATH [M43]).
+//! * **Frames**: `f` or `base` (robot base), `e` (end effector), `c` (camera: z forward along the optical axis, x right,
+//!   y down), `o` (object / target), `cd` (desired camera pose).
+//! * **Joint space** is statically sized: `N` joints, [`JointVector<N>`]. Task spaces have a run-time number of rows.
+//!
+//! ```
+//! use servostack::math::{skew, twist_transform};
+//! use nalgebra::{Isometry3, Vector3};
+//!
+//! // The camera is 0.1 m along x of the end effector, not rotated.
+//! let e_from_c = Isometry3::translation(0.1, 0.0, 0.0);
+//! let c_v_e = twist_transform(&e_from_c.inverse());
+//! // A pure rotation of the end effector about its z axis ...
+//! let v_e = nalgebra::Vector6::new(0.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+//! // ... moves the camera origin sideways: v_c = v_e + ω × (origin of e seen from c).
+//! let v_c = c_v_e * v_e;
+//! assert!((v_c[1] - (-0.1)).abs() < 1e-15);
+//! assert_eq!(skew(&Vector3::x()) * Vector3::y(), Vector3::z());
+//! ```
+
+use nalgebra::{Isometry3, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
+
+/// A joint-space vector of `N` joints (positions in m or rad, velocities in m/s or rad/s, gradients).
+pub type JointVector<const N: usize> = SVector<f64, N>;
+
+/// An `N × N` joint-space matrix (projectors `P^A_i`, normal matrices).
+pub type JointMatrix<const N: usize> = SMatrix<f64, N, N>;
+
+/// A rigid-body velocity screw `(v, ω)`: linear velocity (m/s) first, then angular velocity (rad/s).
+pub type Twist = Vector6<f64>;
+
+/// A 6 × 6 twist transform `a_v_b` (ViSP `aVb`), MATH [M43].
+pub type TwistTransform = Matrix6<f64>;
+
+/// A 6 × `N` kinematic Jacobian: maps joint velocities to a twist `(v, ω)` in some frame.
+pub type KinematicJacobian<const N: usize> = SMatrix<f64, 6, N>;
+
+/// The skew-symmetric matrix `[t]×` such that `[t]× u = t × u`.
+pub fn skew(t: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -t.z, t.y, t.z, 0.0, -t.x, -t.y, t.x, 0.0)
+}
+
+/// Twist transform `a_v_b` of a transform `a_from_b` (MATH [M43]):
+///
+/// ```text
+/// a_v_b = [ aRb   [atb]× aRb ]
+///         [  0        aRb    ]
+/// ```
+///
+/// so that the twist `(v, ω)` of a rigid body expressed (and taken at the origin of) frame `b` becomes the same
+/// motion expressed at the origin of frame `a`: `v_a = a_v_b · v_b`. With `a_from_b = c_from_e` this is the `cVe` of
+/// MATH [M42].
+pub fn twist_transform(a_from_b: &Isometry3<f64>) -> TwistTransform {
+    let rotation = a_from_b.rotation.to_rotation_matrix().into_inner();
+    let translation = a_from_b.translation.vector;
+    let mut out = Matrix6::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation);
+    out.fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(skew(&translation) * rotation));
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&rotation);
+    out
+}
+
+/// Wraps an angle (rad) into `(−π, π]`, the convention for angular feature errors (MATH D8).
+pub fn wrap_angle(angle: f64) -> f64 {
+    let two_pi = 2.0 * std::f64::consts::PI;
+    let wrapped = angle - two_pi * (angle / two_pi).round();
+    if wrapped <= -std::f64::consts::PI {
+        wrapped + two_pi
+    } else {
+        wrapped
+    }
+}
+
+/// `true` when every entry of a matrix or vector is finite (no NaN, no ±∞).
+pub fn all_finite<R, C, S>(m: &nalgebra::Matrix<f64, R, C, S>) -> bool
+where
+    R: nalgebra::Dim,
+    C: nalgebra::Dim,
+    S: nalgebra::RawStorage<f64, R, C>,
+{
+    m.iter().all(|v| v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::{Point3, UnitQuaternion};
+
+    #[test]
+    fn skew_is_the_cross_product() {
+        let t = Vector3::new(0.3, -1.2, 2.5);
+        let u = Vector3::new(-0.7, 0.4, 1.1);
+        assert_relative_eq!(skew(&t) * u, t.cross(&u), epsilon = 1e-15);
+        assert_relative_eq!(skew(&t).transpose(), -skew(&t), epsilon = 0.0);
+    }
+
+    /// The twist transform must agree with moving rigid-body points: for a body moving with twist `v_b` (at the origin
+    /// of b, in b), the velocity of a point p is `v + ω × p` in either frame.
+    #[test]
+    fn twist_transform_matches_point_velocities() {
+        let a_from_b = Isometry3::from_parts(
+            Vector3::new(0.2, -0.5, 1.3).into(),
+            UnitQuaternion::from_euler_angles(0.4, -0.9, 2.1),
+        );
+        let v_b = Vector6::new(0.1, -0.2, 0.3, 0.7, -0.4, 0.25);
+        let v_a = twist_transform(&a_from_b) * v_b;
+        let p_b = Point3::new(0.3, 0.8, -0.6);
+        let p_a = a_from_b * p_b;
+        let vel_b = v_b.fixed_rows::<3>(0) + v_b.fixed_rows::<3>(3).cross(&p_b.coords);
+        let vel_a = v_a.fixed_rows::<3>(0) + v_a.fixed_rows::<3>(3).cross(&p_a.coords);
+        assert_relative_eq!(a_from_b.rotation * vel_b, vel_a, epsilon = 1e-14);
+    }
+
+    #[test]
+    fn twist_transform_composes_and_inverts() {
+        let a_from_b = Isometry3::new(Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.3, -0.2, 0.9));
+        let b_from_c = Isometry3::new(Vector3::new(-0.4, 0.6, 0.1), Vector3::new(-1.1, 0.5, 0.2));
+        assert_relative_eq!(
+            twist_transform(&(a_from_b * b_from_c)),
+            twist_transform(&a_from_b) * twist_transform(&b_from_c),
+            epsilon = 1e-14
+        );
+        assert_relative_eq!(
+            twist_transform(&a_from_b.inverse()) * twist_transform(&a_from_b),
+            Matrix6::identity(),
+            epsilon = 1e-14
+        );
+    }
+
+    #[test]
+    fn wrap_angle_lands_in_half_open_interval() {
+        use std::f64::consts::PI;
+        assert_relative_eq!(wrap_angle(3.0 * PI), PI, epsilon = 1e-12);
+        assert_relative_eq!(wrap_angle(-PI), PI, epsilon = 1e-12);
+        assert_relative_eq!(wrap_angle(0.5 - 4.0 * PI), 0.5, epsilon = 1e-12);
+        assert_relative_eq!(wrap_angle(-0.5), -0.5, epsilon = 0.0);
+    }
+}
