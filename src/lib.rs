@@ -3,3 +3,5 @@
 #![deny(unsafe_code)]
 
 pub mod math;
+pub mod camera;
+pub mod target;
