@@ -2,6 +2,12 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 
-pub mod math;
+pub mod avoidance;
 pub mod camera;
+pub mod continuity;
+pub mod law;
+pub mod linalg;
+pub mod math;
+pub mod stack;
 pub mod target;
+pub mod task;
