@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 
-pub mod math;
 pub mod camera;
+pub mod math;
+pub mod robot;
 pub mod target;
