@@ -3,6 +3,9 @@
 //! Frames: the camera frame `c` has z forward along the optical axis, x right, y down. Projection gives normalised
 //! image coordinates `x = X/Z`, `y = Y/Z` (metric, not pixels) and the depth `Z` (m) of each point.
 
+use crate::math::{all_finite, twist_transform, KinematicJacobian, TwistTransform};
+use nalgebra::{Isometry3, Point3};
+
 /// A point seen by the camera: normalised image coordinates `x = X/Z`, `y = Y/Z` (dimensionless) and its depth `Z`
 /// (m, along the optical axis, strictly positive for a visible point), all in the camera frame `c`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -19,5 +22,252 @@ impl ImagePoint {
     /// A point from its normalised coordinates and depth (m).
     pub const fn new(x: f64, y: f64, depth: f64) -> Self {
         Self { x, y, depth }
+    }
+}
+
+/// Smallest depth `Z` (m) a projected point may have: points at or behind it are rejected (a point at or behind the
+/// optical centre has no image; close to it, `x = X/Z` blows up).
+pub const MIN_DEPTH: f64 = 1e-6;
+
+/// Errors of the camera model. Each variant carries the offending values.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CameraError {
+    /// An intrinsic parameter is non-finite, or a focal length or image size is not strictly positive.
+    #[error("invalid camera intrinsic {name} = {value}")]
+    InvalidIntrinsic {
+        /// The parameter (`"fx"`, `"fy"`, `"cx"`, `"cy"`, `"width"`, `"height"`).
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A point to project lies at or behind the camera: its depth is not above [`MIN_DEPTH`].
+    #[error("point {index} is at or behind the camera (depth {depth} m)")]
+    PointBehindCamera {
+        /// Index of the point in the input slice.
+        index: usize,
+        /// Its depth `Z` in the camera frame (m).
+        depth: f64,
+    },
+    /// A point or a pose given to the camera has a NaN or infinite coordinate.
+    #[error("non-finite {what}")]
+    NonFinite {
+        /// What was not finite (`"point 2"`, `"c_from_o"`, `"e_from_c"`).
+        what: String,
+    },
+    /// The output slice does not have one entry per input point.
+    #[error("{points} points but an output slice of {outputs}")]
+    LengthMismatch {
+        /// Number of points to project.
+        points: usize,
+        /// Length of the output slice.
+        outputs: usize,
+    },
+}
+
+/// Pinhole intrinsics in pixels: focal lengths `fx`, `fy`, principal point `(cx, cy)`, image size `width × height`.
+///
+/// A pixel `(u, v)` and the normalised coordinates `(x, y)` of MATH §7.1 are related by `u = cx + fx x`,
+/// `v = cy + fy y` (no distortion).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraIntrinsics {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    width: f64,
+    height: f64,
+}
+
+impl CameraIntrinsics {
+    /// Intrinsics from focal lengths `fx`, `fy` (px), principal point `cx`, `cy` (px) and image size `width`,
+    /// `height` (px).
+    ///
+    /// # Errors
+    /// [`CameraError::InvalidIntrinsic`] when a value is non-finite or a focal length or size is not `> 0`.
+    pub fn new(
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        width: f64,
+        height: f64,
+    ) -> Result<Self, CameraError> {
+        let positive = [("fx", fx), ("fy", fy), ("width", width), ("height", height)];
+        let any = [("cx", cx), ("cy", cy)];
+        let bad_positive = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0));
+        let bad_any = any.iter().find(|(_, v)| !v.is_finite());
+        match bad_positive.or(bad_any) {
+            Some(&(name, value)) => Err(CameraError::InvalidIntrinsic { name, value }),
+            None => Ok(Self {
+                fx,
+                fy,
+                cx,
+                cy,
+                width,
+                height,
+            }),
+        }
+    }
+
+    /// Horizontal focal length (px).
+    pub fn fx(&self) -> f64 {
+        self.fx
+    }
+
+    /// Vertical focal length (px).
+    pub fn fy(&self) -> f64 {
+        self.fy
+    }
+
+    /// Principal point abscissa (px).
+    pub fn cx(&self) -> f64 {
+        self.cx
+    }
+
+    /// Principal point ordinate (px).
+    pub fn cy(&self) -> f64 {
+        self.cy
+    }
+
+    /// Image width (px).
+    pub fn width(&self) -> f64 {
+        self.width
+    }
+
+    /// Image height (px).
+    pub fn height(&self) -> f64 {
+        self.height
+    }
+
+    /// Pixel `(u, v)` of normalised coordinates `(x, y)`: `(cx + fx x, cy + fy y)`.
+    pub fn normalized_to_pixel(&self, x: f64, y: f64) -> (f64, f64) {
+        (self.cx + self.fx * x, self.cy + self.fy * y)
+    }
+
+    /// Normalised coordinates `(x, y)` of pixel `(u, v)`: `((u − cx)/fx, (v − cy)/fy)`.
+    pub fn pixel_to_normalized(&self, u: f64, v: f64) -> (f64, f64) {
+        ((u - self.cx) / self.fx, (v - self.cy) / self.fy)
+    }
+
+    /// `true` when the point's pixel lies in the image shrunk by `margin` pixels on every side:
+    /// `margin ≤ u ≤ width − margin` and `margin ≤ v ≤ height − margin`. Points behind the camera (depth ≤
+    /// [`MIN_DEPTH`]) and non-finite points are never in the field of view.
+    pub fn in_field_of_view(&self, point: &ImagePoint, margin: f64) -> bool {
+        let (u, v) = self.normalized_to_pixel(point.x, point.y);
+        point.depth > MIN_DEPTH
+            && (margin..=self.width - margin).contains(&u)
+            && (margin..=self.height - margin).contains(&v)
+    }
+
+    /// `true` when every point is in the field of view with this margin (px), see [`Self::in_field_of_view`].
+    pub fn all_in_field_of_view(&self, points: &[ImagePoint], margin: f64) -> bool {
+        points.iter().all(|p| self.in_field_of_view(p, margin))
+    }
+}
+
+/// Projects a point given in the camera frame (m): `(X/Z, Y/Z, Z)` (MATH §7.1).
+///
+/// # Errors
+/// [`CameraError::NonFinite`] for a non-finite point, [`CameraError::PointBehindCamera`] (with `index` 0) when
+/// `Z ≤ MIN_DEPTH`.
+pub fn project_point(point_in_camera: &Point3<f64>) -> Result<ImagePoint, CameraError> {
+    project_indexed(0, point_in_camera)
+}
+
+fn project_indexed(index: usize, p: &Point3<f64>) -> Result<ImagePoint, CameraError> {
+    if !all_finite(&p.coords) {
+        return Err(CameraError::NonFinite {
+            what: format!("point {index}"),
+        });
+    }
+    if p.z <= MIN_DEPTH {
+        return Err(CameraError::PointBehindCamera { index, depth: p.z });
+    }
+    Ok(ImagePoint::new(p.x / p.z, p.y / p.z, p.z))
+}
+
+/// Projects points given in the object frame `o` (m), seen from a camera at `c_from_o` (pose of `o` in `c`, ViSP
+/// `cMo`), into `out` (one [`ImagePoint`] per point, normalised coordinates and depth). Allocates nothing.
+///
+/// # Errors
+/// [`CameraError::LengthMismatch`] when `out.len() != points_in_object.len()`; [`CameraError::NonFinite`] for a
+/// non-finite pose or point; [`CameraError::PointBehindCamera`] for the first point with `Z ≤ MIN_DEPTH`. On error
+/// the content of `out` is unspecified.
+pub fn project_points(
+    c_from_o: &Isometry3<f64>,
+    points_in_object: &[Point3<f64>],
+    out: &mut [ImagePoint],
+) -> Result<(), CameraError> {
+    if out.len() != points_in_object.len() {
+        return Err(CameraError::LengthMismatch {
+            points: points_in_object.len(),
+            outputs: out.len(),
+        });
+    }
+    if !is_finite_pose(c_from_o) {
+        return Err(CameraError::NonFinite {
+            what: "c_from_o".to_owned(),
+        });
+    }
+    for (index, (p, o)) in points_in_object.iter().zip(out.iter_mut()).enumerate() {
+        *o = project_indexed(index, &(c_from_o * p))?;
+    }
+    Ok(())
+}
+
+/// `true` when the translation and rotation of a pose are finite.
+pub(crate) fn is_finite_pose(pose: &Isometry3<f64>) -> bool {
+    all_finite(&pose.translation.vector) && all_finite(pose.rotation.as_vector())
+}
+
+/// An eye-in-hand camera: rigidly mounted on the end effector at `e_from_c` (ViSP `eMc`), with its twist transform
+/// `c_v_e = twist_transform(e_from_c⁻¹)` (ViSP `cVe`, MATH [M43]) computed once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EyeInHand {
+    e_from_c: Isometry3<f64>,
+    c_v_e: TwistTransform,
+}
+
+impl EyeInHand {
+    /// A camera mounted at `e_from_c`: the pose of the camera frame (z forward, x right, y down) in the end-effector
+    /// frame.
+    ///
+    /// # Errors
+    /// [`CameraError::NonFinite`] when the pose is not finite.
+    pub fn new(e_from_c: Isometry3<f64>) -> Result<Self, CameraError> {
+        if !is_finite_pose(&e_from_c) {
+            return Err(CameraError::NonFinite {
+                what: "e_from_c".to_owned(),
+            });
+        }
+        Ok(Self {
+            e_from_c,
+            c_v_e: twist_transform(&e_from_c.inverse()),
+        })
+    }
+
+    /// `e_from_c` (ViSP `eMc`).
+    pub fn e_from_c(&self) -> &Isometry3<f64> {
+        &self.e_from_c
+    }
+
+    /// `c_v_e` (ViSP `cVe`, MATH [M43]): maps an end-effector twist in `e` to the camera twist in `c`.
+    pub fn c_v_e(&self) -> &TwistTransform {
+        &self.c_v_e
+    }
+
+    /// The camera pose in the robot base frame: `base_from_camera = base_from_tip · e_from_c` (ViSP `fMc = fMe eMc`).
+    pub fn base_from_camera(&self, base_from_tip: &Isometry3<f64>) -> Isometry3<f64> {
+        base_from_tip * self.e_from_c
+    }
+
+    /// The camera Jacobian `cVe · eJe` (MATH [M42] without the interaction matrix): maps `q̇` to the camera twist
+    /// `(v, ω)` in the camera frame.
+    pub fn camera_jacobian<const N: usize>(
+        &self,
+        tip_jacobian: &KinematicJacobian<N>,
+    ) -> KinematicJacobian<N> {
+        self.c_v_e * tip_jacobian
     }
 }

@@ -9,6 +9,7 @@ pub mod controller;
 pub mod law;
 pub mod linalg;
 pub mod math;
+pub mod robot;
 pub mod stack;
 pub mod target;
 pub mod task;

@@ -1,0 +1,217 @@
+//! Forward kinematics and geometric Jacobians of a [`SerialChain`], written into a preallocated workspace.
+
+use super::{ChainLink, JointKind, RobotError, SerialChain};
+use crate::math::{JointVector, KinematicJacobian};
+use nalgebra::{Isometry3, Point3, Quaternion, SMatrix, Translation3, UnitQuaternion, Vector3};
+
+/// Everything one kinematic evaluation computes, for `N` joints, read through the reference
+/// [`SerialChain::kinematics`] returns. All frames and vectors are in the base frame unless named otherwise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KinematicState<const N: usize> {
+    q: JointVector<N>,
+    base_from_segment: [Isometry3<f64>; N],
+    axes: [Vector3<f64>; N],
+    rotational: [bool; N],
+    base_from_tip: Isometry3<f64>,
+    base_jacobian: KinematicJacobian<N>,
+    tip_jacobian: KinematicJacobian<N>,
+}
+
+/// Preallocated storage for [`SerialChain::kinematics`] (the `Data` of the model/data split). Holds no heap memory;
+/// build it once and reuse it for every control step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KinematicsWorkspace<const N: usize> {
+    state: KinematicState<N>,
+}
+
+impl<const N: usize> KinematicsWorkspace<N> {
+    /// A workspace for chains of `N` joints (its content is meaningless until the first evaluation).
+    pub fn new() -> Self {
+        Self {
+            state: KinematicState {
+                q: JointVector::zeros(),
+                base_from_segment: [Isometry3::identity(); N],
+                axes: [Vector3::zeros(); N],
+                rotational: [true; N],
+                base_from_tip: Isometry3::identity(),
+                base_jacobian: KinematicJacobian::zeros(),
+                tip_jacobian: KinematicJacobian::zeros(),
+            },
+        }
+    }
+}
+
+impl<const N: usize> Default for KinematicsWorkspace<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> SerialChain<N> {
+    /// Forward kinematics and both geometric Jacobians at joint positions `q` (rad or m), written into `workspace`
+    /// (see the [module docs](super) for the equations). Allocates nothing.
+    ///
+    /// # Errors
+    /// [`RobotError::NonFiniteJoint`] when an entry of `q` is NaN or infinite. Positions outside the joint limits are
+    /// accepted (the limits are the caller's business: see [`SerialChain::within_limits`]).
+    pub fn kinematics<'w>(
+        &self,
+        workspace: &'w mut KinematicsWorkspace<N>,
+        q: &JointVector<N>,
+    ) -> Result<&'w KinematicState<N>, RobotError> {
+        if let Some((index, &value)) = q.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(RobotError::NonFiniteJoint { index, value });
+        }
+        let state = &mut workspace.state;
+        state.q = *q;
+
+        // Poses: base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i).
+        let mut base_from_segment = Isometry3::identity();
+        for ((((joint, &qi), frame), axis), rotational) in self
+            .joints
+            .iter()
+            .zip(q.iter())
+            .zip(state.base_from_segment.iter_mut())
+            .zip(state.axes.iter_mut())
+            .zip(state.rotational.iter_mut())
+        {
+            *rotational = joint.kind.is_rotational();
+            let base_from_joint = base_from_segment * joint.origin;
+            *axis = base_from_joint.rotation * joint.axis.into_inner();
+            base_from_segment = match joint.kind {
+                JointKind::Revolute | JointKind::Continuous => {
+                    let (s, c) = (0.5 * qi).sin_cos();
+                    let v = joint.axis.into_inner() * s;
+                    let motion = UnitQuaternion::new_unchecked(Quaternion::new(c, v.x, v.y, v.z));
+                    Isometry3::from_parts(
+                        base_from_joint.translation,
+                        base_from_joint.rotation * motion,
+                    )
+                }
+                JointKind::Prismatic => Isometry3::from_parts(
+                    Translation3::from(base_from_joint.translation.vector + *axis * qi),
+                    base_from_joint.rotation,
+                ),
+            };
+            *frame = base_from_segment;
+        }
+        state.base_from_tip = base_from_segment * self.segment_from_tip;
+
+        // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
+        let tip = state.base_from_tip.translation.vector;
+        let tip_from_base = state.base_from_tip.rotation.inverse().to_rotation_matrix();
+        for (i, ((joint, frame), axis)) in self
+            .joints
+            .iter()
+            .zip(state.base_from_segment.iter())
+            .zip(state.axes.iter())
+            .enumerate()
+        {
+            let (linear, angular) = match joint.kind {
+                JointKind::Revolute | JointKind::Continuous => {
+                    (axis.cross(&(tip - frame.translation.vector)), *axis)
+                }
+                JointKind::Prismatic => (*axis, Vector3::zeros()),
+            };
+            let mut column = state.base_jacobian.column_mut(i);
+            column.fixed_rows_mut::<3>(0).copy_from(&linear);
+            column.fixed_rows_mut::<3>(3).copy_from(&angular);
+            let mut column = state.tip_jacobian.column_mut(i);
+            column
+                .fixed_rows_mut::<3>(0)
+                .copy_from(&(tip_from_base * linear));
+            column
+                .fixed_rows_mut::<3>(3)
+                .copy_from(&(tip_from_base * angular));
+        }
+        Ok(&workspace.state)
+    }
+}
+
+impl<const N: usize> KinematicState<N> {
+    /// The joint positions this state was computed at (rad or m).
+    pub fn q(&self) -> &JointVector<N> {
+        &self.q
+    }
+
+    /// `base_from_tip` (ViSP `fMe`): the pose of the tip (end-effector) frame in the base frame.
+    pub fn base_from_tip(&self) -> &Isometry3<f64> {
+        &self.base_from_tip
+    }
+
+    /// The geometric Jacobian in the base frame: `base_J q̇ = (v, ω)`, the linear velocity (m/s) of the tip origin and
+    /// the angular velocity (rad/s) of the tip, both in base axes.
+    pub fn base_jacobian(&self) -> &KinematicJacobian<N> {
+        &self.base_jacobian
+    }
+
+    /// The geometric Jacobian in the end-effector frame, `eJe` (MATH [M42]): `eJe q̇` is the tip twist `(v, ω)`
+    /// expressed in tip axes, taken at the tip origin.
+    pub fn tip_jacobian(&self) -> &KinematicJacobian<N> {
+        &self.tip_jacobian
+    }
+
+    /// `base_from_segment_i` for every joint `i`: the pose of the child link frame of joint `i` in the base frame.
+    pub fn segment_poses(&self) -> &[Isometry3<f64>; N] {
+        &self.base_from_segment
+    }
+
+    /// The unit axis of every joint, in the base frame. Revolute axes pass through the origin of the corresponding
+    /// [`Self::segment_poses`] frame.
+    pub fn joint_axes(&self) -> &[Vector3<f64>; N] {
+        &self.axes
+    }
+
+    /// The pose of a link of the chain in the base frame.
+    ///
+    /// # Errors
+    /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
+    pub fn base_from_link(&self, link: &ChainLink) -> Result<Isometry3<f64>, RobotError> {
+        Ok(match link.moved_by {
+            None => link.segment_from_link,
+            Some(index) => self.segment(index)? * link.segment_from_link,
+        })
+    }
+
+    /// The point Jacobian of a point rigidly attached to `link`, at `point_in_base` (its current position, base
+    /// frame): `out · q̇` is the point's linear velocity (m/s) in base axes. Column `i` is `a_i × (p − o_i)` for a
+    /// rotational joint, `a_i` for a prismatic one, and zero for joints after the link (and for all joints when the
+    /// link is attached to the base). Allocates nothing.
+    ///
+    /// # Errors
+    /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
+    pub fn point_jacobian(
+        &self,
+        link: &ChainLink,
+        point_in_base: &Point3<f64>,
+        out: &mut SMatrix<f64, 3, N>,
+    ) -> Result<(), RobotError> {
+        if let Some(index) = link.moved_by {
+            self.segment(index)?;
+        }
+        let moving = link.moved_by.map_or(0, |i| i + 1);
+        for (i, ((frame, axis), rotational)) in self
+            .base_from_segment
+            .iter()
+            .zip(self.axes.iter())
+            .zip(self.rotational.iter())
+            .enumerate()
+        {
+            let column = if i >= moving {
+                Vector3::zeros()
+            } else if *rotational {
+                axis.cross(&(point_in_base.coords - frame.translation.vector))
+            } else {
+                *axis
+            };
+            out.column_mut(i).copy_from(&column);
+        }
+        Ok(())
+    }
+
+    fn segment(&self, index: usize) -> Result<&Isometry3<f64>, RobotError> {
+        self.base_from_segment
+            .get(index)
+            .ok_or(RobotError::JointIndexOutOfRange { index, joints: N })
+    }
+}

@@ -1,0 +1,344 @@
+//! Robot models: serial kinematic chains loaded from URDF, their forward kinematics and Jacobians, built-in arms.
+//!
+//! # Model and workspace
+//!
+//! As Pinocchio's `Model`/`Data` (DESIGN.md, principle 2), a [`SerialChain<N>`] is the immutable model (joint kinds,
+//! fixed transforms, axes, limits, names) and a [`KinematicsWorkspace<N>`] holds everything one evaluation writes.
+//! [`SerialChain::kinematics`] fills the workspace for a joint vector `q` and returns the [`KinematicState<N>`] it
+//! computed: the pose `base_from_tip` (ViSP `fMe`), the geometric Jacobian in the base frame and in the end-effector
+//! frame (`eJe`, MATH [M42]), and the pose and axis of every joint. The computation allocates nothing.
+//!
+//! # Conventions
+//!
+//! * Frames: `base` is the frame of the URDF base link (ViSP `f`), `tip` the frame of the URDF tip link (ViSP `e`,
+//!   the end effector). A *segment* is the rigid group of links moved by one joint: segment `i` has the frame of the
+//!   child link of joint `i`; links attached by fixed joints are folded into it.
+//! * Joint `i` moves segment `i` relative to segment `i − 1` (the base for `i = 0`). At `q = 0` the child frame of a
+//!   joint is its URDF `<origin>`; a revolute or continuous joint then rotates it by `q_i` (rad) about the unit `<axis>`
+//!   (expressed in the joint frame), a prismatic joint translates it by `q_i` (m) along that axis:
+//!
+//!   ```text
+//!   base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i),     base_from_tip = base_from_segment_{N−1} · segment_from_tip
+//!   ```
+//! * Jacobians (twist order `(v, ω)`, MATH §0): with `a_i` the unit axis of joint `i` and `o_i` the origin of its frame,
+//!   both in the base frame, and `p` the origin of the tip frame,
+//!
+//!   ```text
+//!   column i of base_J = (a_i × (p − o_i), a_i)   (revolute, continuous)
+//!                        (a_i, 0)                 (prismatic)
+//!   eJe = diag(eRb, eRb) · base_J                  (the same tip twist, expressed in the tip frame)
+//!   ```
+//!   so `base_J q̇` is the linear velocity of the tip origin and the angular velocity of the tip, in base axes, and
+//!   `eJe q̇` the same twist in tip axes — the `eJe` that MATH [M42] multiplies by `cVe` [M43].
+//!
+//! # Joint limits
+//!
+//! Revolute and prismatic joints must carry finite limits `lower < upper` (rad or m). Continuous joints have no limit:
+//! their limits are `−∞` and `+∞` (a joint-limit cost must treat them as unlimited).
+//!
+//! ```
+//! use servostack::robot::{builtin, KinematicsWorkspace};
+//! use servostack::math::JointVector;
+//!
+//! let robot = builtin::afma6()?;
+//! let mut ws = KinematicsWorkspace::new();
+//! let q = JointVector::<6>::new(0.1, -0.2, 0.05, 0.3, 0.4, -0.1);
+//! let state = robot.chain.kinematics(&mut ws, &q)?;
+//! let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
+//! let camera_jacobian = robot.camera.camera_jacobian(state.tip_jacobian()); // cVe · eJe
+//! // The camera frame moves with the end effector: fMc = fMe · eMc.
+//! let e_from_c = robot.camera.e_from_c();
+//! assert_eq!(base_from_camera, state.base_from_tip() * e_from_c);
+//! // Joint 1 is the gantry's x slide: q̇ = (1, 0, …) moves the camera along x of the base, 1 m/s.
+//! let c_from_base = base_from_camera.rotation.inverse();
+//! let v_c = camera_jacobian.column(0).fixed_rows::<3>(0).into_owned();
+//! assert!((c_from_base.inverse() * v_c - nalgebra::Vector3::x()).norm() < 1e-12);
+//! # Ok::<(), servostack::robot::RobotError>(())
+//! ```
+
+pub mod builtin;
+mod kinematics;
+mod urdf;
+
+pub use kinematics::{KinematicState, KinematicsWorkspace};
+
+use crate::camera::CameraError;
+use crate::math::JointVector;
+use nalgebra::{Isometry3, Unit, Vector3};
+
+/// Errors of robot loading and kinematics. Each variant names the offending joint, link or value.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RobotError {
+    /// The URDF text could not be parsed (malformed XML or URDF, as reported by urdf-rs).
+    #[error("cannot parse URDF: {message}")]
+    Urdf {
+        /// The parser's message.
+        message: String,
+    },
+    /// A URDF file could not be read.
+    #[error("cannot read URDF file {path}: {message}")]
+    File {
+        /// The path given.
+        path: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The base or tip link named by the caller is not a link of the URDF.
+    #[error("unknown {role} link {link:?}")]
+    UnknownLink {
+        /// `"base"` or `"tip"`.
+        role: &'static str,
+        /// The link name given.
+        link: String,
+    },
+    /// Walking up from the tip link through parent joints never reaches the base link.
+    #[error("tip link {tip:?} is not reachable from base link {base:?}")]
+    TipNotReachable {
+        /// Base link name.
+        base: String,
+        /// Tip link name.
+        tip: String,
+    },
+    /// A link on the path is the child of several joints (the URDF is not a tree).
+    #[error("link {link:?} is the child of several joints")]
+    MultipleParents {
+        /// The link name.
+        link: String,
+    },
+    /// A joint on the path is of a kind a serial chain cannot hold (floating, planar, spherical).
+    #[error("joint {joint:?} is {kind}: only revolute, continuous, prismatic and fixed joints are supported")]
+    UnsupportedJoint {
+        /// Joint name.
+        joint: String,
+        /// Its URDF type.
+        kind: &'static str,
+    },
+    /// A joint on the path mimics another joint: the chain would count it as an independent degree of freedom.
+    #[error("joint {joint:?} is a mimic joint: mimic joints are not supported")]
+    MimicJoint {
+        /// Joint name.
+        joint: String,
+    },
+    /// The chain has a different number of movable joints than the static size `N`.
+    #[error("the chain has {found} movable joints, expected {expected}")]
+    JointCount {
+        /// `N`.
+        expected: usize,
+        /// Movable joints between base and tip.
+        found: usize,
+    },
+    /// A revolute or prismatic joint has no usable `<limit lower upper>` (absent, infinite, or `lower = upper = 0`,
+    /// which is what urdf-rs reports for a missing `<limit>` element before URDF 1.2).
+    #[error("joint {joint:?} has no position limits (lower = {lower}, upper = {upper})")]
+    MissingLimits {
+        /// Joint name.
+        joint: String,
+        /// Lower limit read.
+        lower: f64,
+        /// Upper limit read.
+        upper: f64,
+    },
+    /// A revolute or prismatic joint has `lower ≥ upper`.
+    #[error("joint {joint:?} has an empty or inverted range: lower = {lower}, upper = {upper}")]
+    InvalidLimits {
+        /// Joint name.
+        joint: String,
+        /// Lower limit (rad or m).
+        lower: f64,
+        /// Upper limit (rad or m).
+        upper: f64,
+    },
+    /// A movable joint has a zero (or near-zero, norm below 1e−12) axis.
+    #[error("joint {joint:?} has a zero axis {axis:?}")]
+    ZeroAxis {
+        /// Joint name.
+        joint: String,
+        /// The axis read.
+        axis: [f64; 3],
+    },
+    /// A number of the URDF on the path (origin, axis, limit) is NaN or infinite.
+    #[error("joint {joint:?}: {field} is not finite: {values:?}")]
+    NonFiniteUrdf {
+        /// Joint name.
+        joint: String,
+        /// Which field (`"origin xyz"`, `"origin rpy"`, `"axis"`, `"limit"`).
+        field: &'static str,
+        /// The values read.
+        values: Vec<f64>,
+    },
+    /// A joint position given to the kinematics is NaN or infinite.
+    #[error("joint {index} position is not finite: {value}")]
+    NonFiniteJoint {
+        /// Joint index.
+        index: usize,
+        /// The value given.
+        value: f64,
+    },
+    /// A link passed to a kinematic query belongs to a chain with more joints than this state.
+    #[error("link is moved by joint {index}, but the chain has {joints} joints")]
+    JointIndexOutOfRange {
+        /// The joint index.
+        index: usize,
+        /// The number of joints `N`.
+        joints: usize,
+    },
+    /// No built-in robot has this name.
+    #[error("unknown built-in robot {name:?} (known: {known:?})")]
+    UnknownRobot {
+        /// The name asked for.
+        name: String,
+        /// The names of the built-in robots.
+        known: &'static [&'static str],
+    },
+    /// The camera mount of a robot is invalid.
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+}
+
+/// The kind of a movable joint. Fixed URDF joints are folded into the fixed transforms and never appear here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotation about the axis, position in rad, finite limits.
+    Revolute,
+    /// Rotation about the axis, position in rad, no limits (`±∞`).
+    Continuous,
+    /// Translation along the axis, position in m, finite limits.
+    Prismatic,
+}
+
+impl JointKind {
+    /// `true` for revolute and continuous joints (position in rad).
+    pub fn is_rotational(self) -> bool {
+        !matches!(self, JointKind::Prismatic)
+    }
+}
+
+/// One movable joint of a [`SerialChain`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    name: String,
+    kind: JointKind,
+    child_link: String,
+    origin: Isometry3<f64>,
+    axis: Unit<Vector3<f64>>,
+}
+
+impl Joint {
+    /// The URDF joint name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Revolute, continuous or prismatic.
+    pub fn kind(&self) -> JointKind {
+        self.kind
+    }
+
+    /// The URDF child link of this joint: the link whose frame is the frame of the segment this joint moves.
+    pub fn child_link(&self) -> &str {
+        &self.child_link
+    }
+
+    /// `segment_{i−1}_from_joint_i`: the joint frame at `q_i = 0` in the frame of the previous segment (the base
+    /// frame for the first joint), the URDF `<origin>` composed with every fixed joint before it.
+    pub fn origin(&self) -> &Isometry3<f64> {
+        &self.origin
+    }
+
+    /// The unit joint axis, in the joint frame (the URDF `<axis>`, normalised).
+    pub fn axis(&self) -> &Unit<Vector3<f64>> {
+        &self.axis
+    }
+}
+
+/// One URDF link on the path from base to tip, with the segment that carries it (for collision geometry).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainLink {
+    name: String,
+    moved_by: Option<usize>,
+    segment_from_link: Isometry3<f64>,
+}
+
+impl ChainLink {
+    /// The URDF link name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The index of the last joint that moves this link (the link belongs to segment `i`), or `None` for links
+    /// rigidly attached to the base.
+    pub fn moved_by(&self) -> Option<usize> {
+        self.moved_by
+    }
+
+    /// The fixed pose of the link frame in its segment frame (in the base frame when [`Self::moved_by`] is `None`).
+    pub fn segment_from_link(&self) -> &Isometry3<f64> {
+        &self.segment_from_link
+    }
+}
+
+/// A serial kinematic chain of `N` movable joints between a base link and a tip link (the model; immutable).
+///
+/// Built from URDF with [`SerialChain::from_urdf_str`] / [`SerialChain::from_urdf_file`], or taken from
+/// [`builtin`]. Evaluated with [`SerialChain::kinematics`] into a [`KinematicsWorkspace`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SerialChain<const N: usize> {
+    base_link: String,
+    tip_link: String,
+    joints: [Joint; N],
+    lower: JointVector<N>,
+    upper: JointVector<N>,
+    segment_from_tip: Isometry3<f64>,
+    links: Vec<ChainLink>,
+}
+
+impl<const N: usize> SerialChain<N> {
+    /// The URDF base link name (frame `base`, ViSP `f`).
+    pub fn base_link(&self) -> &str {
+        &self.base_link
+    }
+
+    /// The URDF tip link name (frame `tip`, ViSP `e`).
+    pub fn tip_link(&self) -> &str {
+        &self.tip_link
+    }
+
+    /// The movable joints, from base to tip.
+    pub fn joints(&self) -> &[Joint; N] {
+        &self.joints
+    }
+
+    /// Lower joint limits (rad or m); `−∞` for continuous joints.
+    pub fn lower_limits(&self) -> &JointVector<N> {
+        &self.lower
+    }
+
+    /// Upper joint limits (rad or m); `+∞` for continuous joints.
+    pub fn upper_limits(&self) -> &JointVector<N> {
+        &self.upper
+    }
+
+    /// The fixed pose of the tip frame in the frame of the last segment (in the base frame when `N = 0`): the fixed
+    /// joints after the last movable joint, composed.
+    pub fn segment_from_tip(&self) -> &Isometry3<f64> {
+        &self.segment_from_tip
+    }
+
+    /// Every URDF link on the path, from the base link to the tip link, with the segment carrying it.
+    pub fn links(&self) -> &[ChainLink] {
+        &self.links
+    }
+
+    /// The link of the path with this name, if any.
+    pub fn link(&self, name: &str) -> Option<&ChainLink> {
+        self.links.iter().find(|l| l.name == name)
+    }
+
+    /// `true` when every joint of `q` lies in `[lower, upper]` (limits included).
+    pub fn within_limits(&self, q: &JointVector<N>) -> bool {
+        q.iter()
+            .zip(self.lower.iter().zip(self.upper.iter()))
+            .all(|(q, (lo, hi))| *lo <= *q && *q <= *hi)
+    }
+}

@@ -1,0 +1,253 @@
+//! Loading a [`SerialChain`] from URDF (urdf-rs): path search from tip to base, fixed-joint folding, validation.
+
+use super::{ChainLink, Joint, JointKind, RobotError, SerialChain};
+use crate::math::JointVector;
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Axes shorter than this are rejected as zero.
+const MIN_AXIS_NORM: f64 = 1e-12;
+
+impl<const N: usize> SerialChain<N> {
+    /// Loads the chain from `base_link` to `tip_link` of a URDF document.
+    ///
+    /// Fixed joints on the path are folded into the transforms; revolute, continuous and prismatic joints become the
+    /// `N` joints, in order from base to tip. Links and joints off the path are ignored (so any tree works).
+    ///
+    /// # Errors
+    /// [`RobotError::Urdf`] for malformed XML/URDF; [`RobotError::UnknownLink`] when the base or tip link does not
+    /// exist; [`RobotError::MultipleParents`], [`RobotError::TipNotReachable`] when no path leads from base to tip;
+    /// [`RobotError::UnsupportedJoint`] (floating, planar, spherical) and [`RobotError::MimicJoint`] for joints on the
+    /// path; [`RobotError::JointCount`] when the path has a number of movable joints other than `N`;
+    /// [`RobotError::MissingLimits`], [`RobotError::InvalidLimits`], [`RobotError::ZeroAxis`],
+    /// [`RobotError::NonFiniteUrdf`] for invalid joints on the path.
+    pub fn from_urdf_str(xml: &str, base_link: &str, tip_link: &str) -> Result<Self, RobotError> {
+        let robot = parse_urdf(xml)?;
+        Self::from_urdf_robot(&robot, base_link, tip_link)
+    }
+
+    /// Reads a URDF file and loads the chain from `base_link` to `tip_link`, as [`SerialChain::from_urdf_str`].
+    ///
+    /// # Errors
+    /// [`RobotError::File`] when the file cannot be read, then those of [`SerialChain::from_urdf_str`].
+    pub fn from_urdf_file(
+        path: impl AsRef<Path>,
+        base_link: &str,
+        tip_link: &str,
+    ) -> Result<Self, RobotError> {
+        let path = path.as_ref();
+        let xml = std::fs::read_to_string(path).map_err(|e| RobotError::File {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::from_urdf_str(&xml, base_link, tip_link)
+    }
+
+    /// Loads the chain from an already parsed urdf-rs [`urdf_rs::Robot`], as [`SerialChain::from_urdf_str`].
+    ///
+    /// # Errors
+    /// Those of [`SerialChain::from_urdf_str`] except [`RobotError::Urdf`].
+    pub fn from_urdf_robot(
+        robot: &urdf_rs::Robot,
+        base_link: &str,
+        tip_link: &str,
+    ) -> Result<Self, RobotError> {
+        for (role, link) in [("base", base_link), ("tip", tip_link)] {
+            if !robot.links.iter().any(|l| l.name == link) {
+                return Err(RobotError::UnknownLink {
+                    role,
+                    link: link.to_owned(),
+                });
+            }
+        }
+        let path = path_from_base(robot, base_link, tip_link)?;
+
+        let mut joints = Vec::with_capacity(N);
+        let mut lower = Vec::with_capacity(N);
+        let mut upper = Vec::with_capacity(N);
+        let mut links = vec![ChainLink {
+            name: base_link.to_owned(),
+            moved_by: None,
+            segment_from_link: Isometry3::identity(),
+        }];
+        // Pose of the current link in the frame of the current segment (the base before the first movable joint).
+        let mut segment_from_link = Isometry3::identity();
+        for urdf_joint in path {
+            let origin = segment_from_link * joint_origin(urdf_joint)?;
+            let kind = match urdf_joint.joint_type {
+                urdf_rs::JointType::Fixed => None,
+                urdf_rs::JointType::Revolute => Some(JointKind::Revolute),
+                urdf_rs::JointType::Continuous => Some(JointKind::Continuous),
+                urdf_rs::JointType::Prismatic => Some(JointKind::Prismatic),
+                urdf_rs::JointType::Floating => return Err(unsupported(urdf_joint, "floating")),
+                urdf_rs::JointType::Planar => return Err(unsupported(urdf_joint, "planar")),
+                urdf_rs::JointType::Spherical => return Err(unsupported(urdf_joint, "spherical")),
+            };
+            match kind {
+                None => segment_from_link = origin,
+                Some(kind) => {
+                    if urdf_joint.mimic.is_some() {
+                        return Err(RobotError::MimicJoint {
+                            joint: urdf_joint.name.clone(),
+                        });
+                    }
+                    let (lo, hi) = joint_limits(urdf_joint, kind)?;
+                    lower.push(lo);
+                    upper.push(hi);
+                    joints.push(Joint {
+                        name: urdf_joint.name.clone(),
+                        kind,
+                        child_link: urdf_joint.child.link.clone(),
+                        origin,
+                        axis: joint_axis(urdf_joint)?,
+                    });
+                    segment_from_link = Isometry3::identity();
+                }
+            }
+            links.push(ChainLink {
+                name: urdf_joint.child.link.clone(),
+                moved_by: joints.len().checked_sub(1),
+                segment_from_link,
+            });
+        }
+
+        let found = joints.len();
+        let joints: [Joint; N] = joints
+            .try_into()
+            .map_err(|_| RobotError::JointCount { expected: N, found })?;
+        Ok(Self {
+            base_link: base_link.to_owned(),
+            tip_link: tip_link.to_owned(),
+            joints,
+            lower: JointVector::from_iterator(lower),
+            upper: JointVector::from_iterator(upper),
+            segment_from_tip: segment_from_link,
+            links,
+        })
+    }
+}
+
+/// Parses URDF text with urdf-rs.
+///
+/// # Errors
+/// [`RobotError::Urdf`] with urdf-rs's message.
+pub(super) fn parse_urdf(xml: &str) -> Result<urdf_rs::Robot, RobotError> {
+    // urdf-rs and its XML parsers return errors on the inputs we tried (see the fuzz test), but they are third-party
+    // code: a panic inside them must not escape a loading function that promises an error instead.
+    std::panic::catch_unwind(|| urdf_rs::read_from_string(xml))
+        .map_err(|_| RobotError::Urdf {
+            message: "the URDF parser panicked on this input".to_owned(),
+        })?
+        .map_err(|e| RobotError::Urdf {
+            message: e.to_string(),
+        })
+}
+
+/// The URDF joints from `base` to `tip`, in that order, found by walking up from the tip through parent joints.
+fn path_from_base<'r>(
+    robot: &'r urdf_rs::Robot,
+    base: &str,
+    tip: &str,
+) -> Result<Vec<&'r urdf_rs::Joint>, RobotError> {
+    let mut parent_joint: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
+    let mut several_parents = Vec::new();
+    for joint in &robot.joints {
+        if parent_joint.insert(&joint.child.link, joint).is_some() {
+            several_parents.push(joint.child.link.as_str());
+        }
+    }
+    let mut path = Vec::new();
+    let mut link = tip;
+    while link != base {
+        if several_parents.contains(&link) {
+            return Err(RobotError::MultipleParents {
+                link: link.to_owned(),
+            });
+        }
+        // A path longer than the number of joints has gone round a cycle.
+        let joint = parent_joint
+            .get(link)
+            .filter(|_| path.len() < robot.joints.len())
+            .ok_or_else(|| RobotError::TipNotReachable {
+                base: base.to_owned(),
+                tip: tip.to_owned(),
+            })?;
+        path.push(*joint);
+        link = &joint.parent.link;
+    }
+    path.reverse();
+    Ok(path)
+}
+
+fn unsupported(joint: &urdf_rs::Joint, kind: &'static str) -> RobotError {
+    RobotError::UnsupportedJoint {
+        joint: joint.name.clone(),
+        kind,
+    }
+}
+
+fn finite3(
+    joint: &urdf_rs::Joint,
+    field: &'static str,
+    v: &[f64; 3],
+) -> Result<Vector3<f64>, RobotError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vector3::from(*v))
+    } else {
+        Err(RobotError::NonFiniteUrdf {
+            joint: joint.name.clone(),
+            field,
+            values: v.to_vec(),
+        })
+    }
+}
+
+/// The URDF `<origin>`: translation `xyz` then rotation `rpy` (fixed axes x, y, z: `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+fn joint_origin(joint: &urdf_rs::Joint) -> Result<Isometry3<f64>, RobotError> {
+    let xyz = finite3(joint, "origin xyz", &joint.origin.xyz)?;
+    let rpy = finite3(joint, "origin rpy", &joint.origin.rpy)?;
+    Ok(Isometry3::from_parts(
+        Translation3::from(xyz),
+        UnitQuaternion::from_euler_angles(rpy.x, rpy.y, rpy.z),
+    ))
+}
+
+fn joint_axis(joint: &urdf_rs::Joint) -> Result<Unit<Vector3<f64>>, RobotError> {
+    let axis = finite3(joint, "axis", &joint.axis.xyz)?;
+    Unit::try_new(axis, MIN_AXIS_NORM).ok_or_else(|| RobotError::ZeroAxis {
+        joint: joint.name.clone(),
+        axis: *joint.axis.xyz,
+    })
+}
+
+/// Position limits (rad or m): `±∞` for continuous joints, finite `lower < upper` otherwise.
+fn joint_limits(joint: &urdf_rs::Joint, kind: JointKind) -> Result<(f64, f64), RobotError> {
+    if kind == JointKind::Continuous {
+        return Ok((f64::NEG_INFINITY, f64::INFINITY));
+    }
+    let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+    if lower.is_nan() || upper.is_nan() {
+        return Err(RobotError::NonFiniteUrdf {
+            joint: joint.name.clone(),
+            field: "limit",
+            values: vec![lower, upper],
+        });
+    }
+    let missing = RobotError::MissingLimits {
+        joint: joint.name.clone(),
+        lower,
+        upper,
+    };
+    if lower.is_infinite() || upper.is_infinite() || (lower == 0.0 && upper == 0.0) {
+        Err(missing)
+    } else if lower >= upper {
+        Err(RobotError::InvalidLimits {
+            joint: joint.name.clone(),
+            lower,
+            upper,
+        })
+    } else {
+        Ok((lower, upper))
+    }
+}
