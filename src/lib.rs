@@ -5,3 +5,4 @@
 pub mod math;
 pub mod camera;
 pub mod target;
+pub mod feature;
