@@ -2,7 +2,7 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 
-pub mod math;
 pub mod camera;
-pub mod target;
 pub mod feature;
+pub mod math;
+pub mod target;

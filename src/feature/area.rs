@@ -1,12 +1,12 @@
-//! Centred moments ([M34]–[M35], (F33)) and the normalised area `a_n` ([M37]–[M39], (F34)–(F35)).
+//! Centred moments (\[M34\]–\[M35\], (F33)) and the normalised area `a_n` (\[M37\]–\[M39\], (F34)–(F35)).
 
 use super::{
-    positive_parameter, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource, Moments,
-    Observation,
+    positive_parameter, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource,
+    Moments, Observation,
 };
 
-/// One centred moment `s = μ_ij` ([M34], no `1/N` factor), `i + j ≤ 3`, with its exact row [M35].
-/// The paper has no approximate form: every [`InteractionSource`] uses [M35].
+/// One centred moment `s = μ_ij` (\[M34\], no `1/N` factor), `i + j ≤ 3`, with its exact row \[M35\].
+/// The paper has no approximate form: every [`InteractionSource`] uses \[M35\].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CentredMoment {
     i: usize,
@@ -67,7 +67,7 @@ impl Feature for CentredMoment {
     }
 }
 
-/// The normalisation of the second-order size: `a_n = Z* sqrt(a*/a)`, `a = μ20 + μ02` [M37] (F34), with the desired
+/// The normalisation of the second-order size: `a_n = Z* sqrt(a*/a)`, `a = μ20 + μ02` \[M37\] (F34), with the desired
 /// depth `Z*` (m) and the desired size `a*` (value of `a` in the desired image). Shared by [`AreaNormalized`],
 /// [`super::PaperInvariants`] and [`super::NormalizedCentroid`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,7 +107,7 @@ impl AreaNormalization {
         self.a_star
     }
 
-    /// `a_n` [M37] and its exact row `L_{a_n} = −(a_n / (2a)) (L_{μ20} + L_{μ02})` (from [M35]).
+    /// `a_n` \[M37\] and its exact row `L_{a_n} = −(a_n / (2a)) (L_{μ20} + L_{μ02})` (from \[M35\]).
     ///
     /// # Errors
     /// [`FeatureError::DegenerateArea`] when `a` vanishes.
@@ -118,12 +118,12 @@ impl AreaNormalization {
     }
 }
 
-/// Task e3 of the paper: the normalised area `s = a_n = Z* sqrt(a*/a)` [M37] (F34), 1 row (mostly `υz`).
+/// Task e3 of the paper: the normalised area `s = a_n = Z* sqrt(a*/a)` \[M37\] (F34), 1 row (mostly `υz`).
 ///
 /// Interaction:
 /// * [`InteractionSource::Exact`] / `Desired`: `L_{a_n} = −(a_n/(2a)) (L_{μ20} + L_{μ02})` by the chain rule from
-///   [M35] (equal to the plane closed form [M38], checked in the tests).
-/// * [`InteractionSource::PaperApprox`]: (F35) [M39], `[0, 0, −1, −a_n ε1, a_n ε2, 0]` with
+///   \[M35\] (equal to the plane closed form \[M38\], checked in the tests).
+/// * [`InteractionSource::PaperApprox`]: (F35) \[M39\], `[0, 0, −1, −a_n ε1, a_n ε2, 0]` with
 ///   `ε1 = y_g + (y_g μ02 + x_g μ11 + μ21 + μ03)/a`, `ε2 = x_g + (x_g μ20 + y_g μ11 + μ12 + μ30)/a`, exact for a
 ///   fronto-parallel target with `a_n = Z` (the a priori depth is the `Z*` of the normalisation).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -176,7 +176,7 @@ impl Feature for AreaNormalized {
     }
 }
 
-/// `(ε1, ε2)` of [M38]–[M39].
+/// `(ε1, ε2)` of \[M38\]–\[M39\].
 fn epsilons(m: &Moments) -> Result<(f64, f64), FeatureError> {
     let (a, _) = m.size()?;
     let mu = |i, j| m.mu(i, j).unwrap_or(0.0);
@@ -215,7 +215,7 @@ mod tests {
             Scene::new(pose, rectangle(0.2, 0.14)).check_exact(&f, plane);
         }
 
-        /// The chain rule equals ViSP's plane closed form [M38].
+        /// The chain rule equals ViSP's plane closed form \[M38\].
         #[test]
         fn area_normalized_matches_closed_form_m38(pose in tilted_pose_strategy()) {
             let scene = Scene::new(pose, rectangle(0.2, 0.14));
@@ -256,7 +256,8 @@ mod tests {
     #[test]
     fn area_normalized_approx_is_exact_fronto_parallel() {
         let desired = rectangle_points_fronto(0.2, 0.14, 0.5);
-        let norm = AreaNormalization::from_desired(&Observation::new(&desired, None).unwrap(), 0.5).unwrap();
+        let norm = AreaNormalization::from_desired(&Observation::new(&desired, None).unwrap(), 0.5)
+            .unwrap();
         let f = AreaNormalized::new(norm);
         let z = 0.9;
         let scene = Scene::new(pose(0.08, -0.05, z, 0.0, 0.0, 0.3), rectangle(0.2, 0.14));
@@ -264,7 +265,10 @@ mod tests {
         let exact = scene.interaction(&f, InteractionSource::Exact, false);
         let approx = scene.interaction(&f, InteractionSource::PaperApprox, false);
         assert_close(&approx, &exact, 1e-12);
-        assert!(exact[(0, 3)].abs() > 1e-3 && exact[(0, 4)].abs() > 1e-3, "off-centre: ω entries non-zero");
+        assert!(
+            exact[(0, 3)].abs() > 1e-3 && exact[(0, 4)].abs() > 1e-3,
+            "off-centre: ω entries non-zero"
+        );
     }
 
     /// Centred fronto-parallel `w × h` rectangle at depth Z: μ20 = 4 (w/2Z)², μ02 = 4 (h/2Z)², the others vanish;
@@ -285,15 +289,21 @@ mod tests {
         let norm = AreaNormalization::new(z, 4.0 * (hw * hw + hh * hh)).unwrap();
         let f = AreaNormalized::new(norm);
         let mut s = [0.0];
-        f.value(&Observation::new(&pts, None).unwrap(), &mut s).unwrap();
+        f.value(&Observation::new(&pts, None).unwrap(), &mut s)
+            .unwrap();
         assert_relative_eq!(s[0], z, epsilon = 1e-15);
         let far = rectangle_points_fronto(w, h, 2.0);
-        f.value(&Observation::new(&far, None).unwrap(), &mut s).unwrap();
+        f.value(&Observation::new(&far, None).unwrap(), &mut s)
+            .unwrap();
         assert_relative_eq!(s[0], 2.0, epsilon = 1e-14);
         // Exact row at the centred fronto-parallel pose: [0, 0, −1, 0, 0, 0] (M38 with A = B = 0, C = 1/Z, ε = 0).
         let mut l = Rows::zeros(1);
-        f.interaction(&Observation::new(&pts, None).unwrap(), InteractionSource::Exact, l.rows_mut(0, 1))
-            .unwrap();
+        f.interaction(
+            &Observation::new(&pts, None).unwrap(),
+            InteractionSource::Exact,
+            l.rows_mut(0, 1),
+        )
+        .unwrap();
         assert_relative_eq!(
             l.row(0).into_owned(),
             InteractionRow::new(0.0, 0.0, -1.0, 0.0, 0.0, 0.0),
@@ -307,7 +317,9 @@ mod tests {
         let obs = Observation::new(&pts, None).unwrap();
         let f = AreaNormalized::new(AreaNormalization::new(0.5, 0.1).unwrap());
         let mut s = [0.0];
-        assert!(matches!(f.value(&obs, &mut s), Err(FeatureError::DegenerateArea { a, .. }) if a == 0.0));
+        assert!(
+            matches!(f.value(&obs, &mut s), Err(FeatureError::DegenerateArea { a, .. }) if a == 0.0)
+        );
         let mut l = Rows::zeros(1);
         assert!(matches!(
             f.interaction(&obs, InteractionSource::PaperApprox, l.rows_mut(0, 1)),

@@ -1,18 +1,18 @@
-//! Centroid features: the paper's task e1 ([M30]–[M31], (F30)–(F31)) and ViSP's normalised centroid.
+//! Centroid features: the paper's task e1 (\[M30\]–\[M31\], (F30)–(F31)) and ViSP's normalised centroid.
 
 use super::{
-    point_interaction, positive_parameter, AreaNormalization, Feature, FeatureError, InteractionRows,
-    InteractionSource, Observation,
+    point_interaction, positive_parameter, AreaNormalization, Feature, FeatureError,
+    InteractionRows, InteractionSource, Observation,
 };
 
-/// Task e1 of the paper: the centroid `s = (x_g, y_g)` of the image points, [M30] (F30).
+/// Task e1 of the paper: the centroid `s = (x_g, y_g)` of the image points, \[M30\] (F30).
 ///
 /// Interaction matrix:
-/// * [`InteractionSource::Exact`] / `Desired`: `L_{x_g} = (1/N) Σ L_{x_k}`, `L_{y_g} = (1/N) Σ L_{y_k}` ([M29]; with
-///   the plane model this is [M31], ViSP `vpFeatureMomentGravityCenter`).
-/// * [`InteractionSource::PaperApprox`]: (F31), the rows [M28] of a single point at `(x_g, y_g)` with the a priori
+/// * [`InteractionSource::Exact`] / `Desired`: `L_{x_g} = (1/N) Σ L_{x_k}`, `L_{y_g} = (1/N) Σ L_{y_k}` (\[M29\]; with
+///   the plane model this is \[M31\], ViSP `vpFeatureMomentGravityCenter`).
+/// * [`InteractionSource::PaperApprox`]: (F31), the rows \[M28\] of a single point at `(x_g, y_g)` with the a priori
 ///   depth `Z_g`. Even for a fronto-parallel target at `Z_g` this differs from the exact rows in `ωx`, `ωy` by the
-///   normalised moments `n11 = μ11/N`, `n20 = μ20/N`, `n02 = μ02/N` ([M31]); the `υ` part is then exact.
+///   normalised moments `n11 = μ11/N`, `n20 = μ20/N`, `n02 = μ02/N` (\[M31\]); the `υ` part is then exact.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Centroid {
     z_g: f64,
@@ -62,7 +62,9 @@ impl Feature for Centroid {
         let m = obs.moments();
         let (lx, ly) = match source {
             InteractionSource::PaperApprox => point_interaction(m.xg(), m.yg(), 1.0 / self.z_g),
-            InteractionSource::Exact | InteractionSource::Desired => (*m.interaction_xg(), *m.interaction_yg()),
+            InteractionSource::Exact | InteractionSource::Desired => {
+                (*m.interaction_xg(), *m.interaction_yg())
+            }
         };
         super::write_rows(l, &[lx, ly]);
         Ok(())
@@ -70,7 +72,7 @@ impl Feature for Centroid {
 }
 
 /// ViSP's normalised centroid (PEER_SCENE variant B, `vpFeatureMomentCentered`-based `x_n, y_n`):
-/// `s = (x_n, y_n) = (a_n x_g, a_n y_g)` with `a_n = Z* sqrt(a*/a)` [M37].
+/// `s = (x_n, y_n) = (a_n x_g, a_n y_g)` with `a_n = Z* sqrt(a*/a)` \[M37\].
 ///
 /// Interaction: exact product rule `L_{x_n} = a_n L_{x_g} + x_g L_{a_n}` (likewise y) with the exact rows of
 /// [`super::Moments`] and [`AreaNormalization`]. The paper has no approximate form: `PaperApprox` is exact too.
@@ -150,7 +152,7 @@ mod tests {
                          &scene.interaction(&f, InteractionSource::Exact, plane), 1e-15);
         }
 
-        /// The exact rows equal the closed form [M31] with the plane model (ViSP's gravity-centre feature).
+        /// The exact rows equal the closed form \[M31\] with the plane model (ViSP's gravity-centre feature).
         #[test]
         fn centroid_matches_closed_form_m31(pose in tilted_pose_strategy()) {
             let scene = Scene::new(pose, rectangle(0.2, 0.14));
@@ -183,7 +185,7 @@ mod tests {
     }
 
     /// Fronto-parallel target at `Z_g`: (F31) equals the exact υ part; the ω part differs by exactly
-    /// `n11`, `n20`, `n02` ([M31] with A = B = 0).
+    /// `n11`, `n20`, `n02` (\[M31\] with A = B = 0).
     #[test]
     fn centroid_approx_on_fronto_parallel_target() {
         let z = 0.7;

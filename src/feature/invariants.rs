@@ -1,11 +1,12 @@
-//! Third-order features: the paper's `P_x, P_y` (task e4, [M40]–[M41], (F36), D9) and ViSP's invariants.
+//! Third-order features: the paper's `P_x, P_y` (task e4, \[M40\]–\[M41\], (F36), D9) and ViSP's invariants.
 
 use super::moments::Orientation;
 use super::{
-    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource, Observation,
+    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource,
+    Observation,
 };
 
-/// Task e4 of the paper: `s = (P_x, P_y)` [M40] (F36), 2 rows (`ωx` against `υy`, `ωy` against `υx`):
+/// Task e4 of the paper: `s = (P_x, P_y)` \[M40\] (F36), 2 rows (`ωx` against `υy`, `ωy` against `υx`):
 ///
 /// ```text
 /// c1 = μ20 − μ02,  s1 = 2μ11,  c2 = μ03 − 3μ21,  s2 = μ30 − 3μ12,  c3 = c1² − s1²,  s3 = 2 s1 c1
@@ -13,7 +14,7 @@ use super::{
 /// P_x = a_n (c2 c3 + s2 s3) / K,   P_y = a_n (s2 c3 − c2 s3) / K
 /// ```
 ///
-/// Interaction: exact [M41] (chain rule from [M35]) for every [`InteractionSource`]. The paper takes this matrix
+/// Interaction: exact \[M41\] (chain rule from \[M35\]) for every [`InteractionSource`]. The paper takes this matrix
 /// from Chaumette 2004, which is not available to us, so `PaperApprox` deliberately uses the exact form (the `a_n`
 /// inside is evaluated exactly too). For `Desired`, pass the desired observation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,10 +93,10 @@ impl Feature for PaperInvariants {
 }
 
 /// ViSP's point-based invariants (`vpMomentCInvariant::Px()`, `Py()`, PEER_SCENE variant B, MATH §7.6):
-/// `s = (P_x, P_y) = (I1/I3², a I2/I3³)` with `I1 = c1² + s1²`, `I2 = c2² + s2²` ([M40] notation),
+/// `s = (P_x, P_y) = (I1/I3², a I2/I3³)` with `I1 = c1² + s1²`, `I2 = c2² + s2²` (\[M40\] notation),
 /// `I3 = a = μ20 + μ02` (so `P_y = I2/I3²` for a point set).
 ///
-/// Interaction, exact by the chain rule from [M35]: `L = L_X/I3² − 2 s L_{I3}/I3` for `X = I1` and `X = a I2/I3 = I2`,
+/// Interaction, exact by the chain rule from \[M35\]: `L = L_X/I3² − 2 s L_{I3}/I3` for `X = I1` and `X = a I2/I3 = I2`,
 /// with `L_{I1} = 2c1 L_{c1} + 2s1 L_{s1}` and `L_{I2} = 2c2 L_{c2} + 2s2 L_{s2}`. Defined for a square seen head-on
 /// (`P_x = 0`); only coincident points (`a = 0`) are an error. `PaperApprox` is exact too.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -231,7 +232,9 @@ mod tests {
         let mut s = [0.0; 2];
         let mut l = Rows::zeros(2);
         let f = PaperInvariants::new(norm());
-        assert!(matches!(f.value(&obs, &mut s), Err(FeatureError::IsotropicMoments { i1, .. }) if i1 < 1e-30));
+        assert!(
+            matches!(f.value(&obs, &mut s), Err(FeatureError::IsotropicMoments { i1, .. }) if i1 < 1e-30)
+        );
         assert!(matches!(
             f.interaction(&obs, InteractionSource::Exact, l.rows_mut(0, 2)),
             Err(FeatureError::IsotropicMoments { .. })
@@ -240,11 +243,18 @@ mod tests {
         assert_relative_eq!(s[0], 0.0, epsilon = 1e-15);
         // A nearly square rectangle (1e−3 relative side difference) is still accepted.
         let pts = rectangle_points_fronto(0.1, 0.1001, 0.5);
-        f.value(&Observation::new(&pts, None).unwrap(), &mut s).unwrap();
+        f.value(&Observation::new(&pts, None).unwrap(), &mut s)
+            .unwrap();
         // Coincident points: a = 0 is reported first.
         let same = [ImagePoint::new(0.1, 0.1, 1.0); 3];
         let obs = Observation::new(&same, None).unwrap();
-        assert!(matches!(f.value(&obs, &mut s), Err(FeatureError::DegenerateArea { .. })));
-        assert!(matches!(VispInvariants.value(&obs, &mut s), Err(FeatureError::DegenerateArea { .. })));
+        assert!(matches!(
+            f.value(&obs, &mut s),
+            Err(FeatureError::DegenerateArea { .. })
+        ));
+        assert!(matches!(
+            VispInvariants.value(&obs, &mut s),
+            Err(FeatureError::DegenerateArea { .. })
+        ));
     }
 }

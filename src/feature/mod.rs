@@ -3,13 +3,13 @@
 //! A visual feature `s` is a function of the observed image points; its **interaction matrix** `L_s`
 //! (`dim × 6`) gives its rate under a camera velocity screw `v = (υ, ω)` expressed in the camera frame `c`
 //! (linear part first, m/s and rad/s): `ṡ = L_s v` (MATH §0, §7). A visual task later builds its Jacobian as
-//! `J = L_s · cVe · eJe` [M42] (F29).
+//! `J = L_s · cVe · eJe` \[M42\] (F29).
 //!
 //! # Data flow (no repeated work, no allocation)
 //!
 //! 1. [`Observation::new`] validates the observed [`ImagePoint`]s (and the target plane when known) and computes,
 //!    **once per point set**, the centroid and the centred moments `μ_ij` up to order 3 with their interaction rows
-//!    ([`Moments`], [M30], [M34]–[M35]).
+//!    ([`Moments`], \[M30\], \[M34\]–\[M35\]).
 //! 2. Each [`Feature`] reads that observation and writes its value into a caller-provided `&mut [f64]`
 //!    ([`Feature::value`]) and its interaction matrix into caller-provided rows of an `OMatrix<f64, Dyn, U6>`
 //!    ([`Feature::interaction`], type [`InteractionRows`]). Nothing allocates on the heap in either call.
@@ -18,7 +18,7 @@
 //!
 //! # Depths
 //!
-//! Every exact interaction matrix is the chain rule [M29] over the point rows [M28], which need the inverse depth
+//! Every exact interaction matrix is the chain rule \[M29\] over the point rows \[M28\], which need the inverse depth
 //! `1/Z_k` of each point. When a [`TargetPlane`] is given to [`Observation::new`], `1/Z_k = A x_k + B y_k + C`
 //! (MATH §7.1); otherwise the depth stored in each [`ImagePoint`] is used. Both are exact for a planar target, so no
 //! feature *requires* the plane: the per-point depths of [`ImagePoint`] always suffice.
@@ -29,7 +29,7 @@
 //! [`InteractionSource::Desired`] is the same exact formula, evaluated on the **desired** observation: the caller
 //! passes the desired observation to [`Feature::interaction`] (once; the result is constant).
 //! [`InteractionSource::PaperApprox`] uses the paper's approximate forms with a priori depths, parameters of the
-//! features: (F31) for the centroid ([`Centroid::a_priori_depth`]), (F32)/[M33] for the diagonal angle, (F35)/[M39]
+//! features: (F31) for the centroid ([`Centroid::a_priori_depth`]), (F32)/\[M33\] for the diagonal angle, (F35)/\[M39\]
 //! for `a_n`. Features without an approximate form in the paper use their exact matrix for `PaperApprox`; each one
 //! says so in its docs (notably `P_x, P_y`, whose matrix the paper takes from Chaumette 2004, not available to us).
 //!
@@ -37,12 +37,12 @@
 //!
 //! | feature | rows | MATH |
 //! |---|---|---|
-//! | [`Point`], [`AllPoints`] | 2, 2N | [M28] |
-//! | [`Centroid`] | 2 (x_g, y_g) | [M30], [M31], (F31) |
-//! | [`DiagonalAngle`] | 1 (angle) | [M32], [M33] (F32), D8 |
-//! | [`CentredMoment`] | 1 | [M34]–[M35] (F33) |
-//! | [`AreaNormalized`] | 1 (a_n) | [M37]–[M39] (F34)–(F35) |
-//! | [`PaperInvariants`] | 2 (P_x, P_y) | [M40]–[M41] (F36), D9 |
+//! | [`Point`], [`AllPoints`] | 2, 2N | \[M28\] |
+//! | [`Centroid`] | 2 (x_g, y_g) | \[M30\], \[M31\], (F31) |
+//! | [`DiagonalAngle`] | 1 (angle) | \[M32\], \[M33\] (F32), D8 |
+//! | [`CentredMoment`] | 1 | \[M34\]–\[M35\] (F33) |
+//! | [`AreaNormalized`] | 1 (a_n) | \[M37\]–\[M39\] (F34)–(F35) |
+//! | [`PaperInvariants`] | 2 (P_x, P_y) | \[M40\]–\[M41\] (F36), D9 |
 //! | [`NormalizedCentroid`] | 2 (x_n, y_n) | ViSP, PEER_SCENE variant B |
 //! | [`MomentOrientation`] | 1 (angle) | ViSP, PEER_SCENE variant B |
 //! | [`VispInvariants`] | 2 (P_x, P_y) | ViSP `vpMomentCInvariant`, MATH §7.6 |
@@ -173,7 +173,7 @@ pub enum FeatureError {
         /// `A x + B y + C` at that point (1/m).
         inverse_depth: f64,
     },
-    /// The two end points of the segment defining an angle coincide in the image (zero length, [M32]).
+    /// The two end points of the segment defining an angle coincide in the image (zero length, \[M32\]).
     #[error("segment from point {from} to point {to} has zero length ({length}) in the image: its angle is undefined")]
     DegenerateSegment {
         /// Index of the first end point.
@@ -183,7 +183,7 @@ pub enum FeatureError {
         /// Length of the segment in normalised coordinates.
         length: f64,
     },
-    /// `a = μ20 + μ02` vanishes (all points coincide in the image), so `a_n`, `P_x`, `P_y` are undefined ([M37]).
+    /// `a = μ20 + μ02` vanishes (all points coincide in the image), so `a_n`, `P_x`, `P_y` are undefined (\[M37\]).
     #[error("second-order size a = μ20 + μ02 = {a} is zero relative to Σ(x² + y²) = {scale}: the points coincide")]
     DegenerateArea {
         /// `μ20 + μ02`.
@@ -253,13 +253,15 @@ pub enum FeatureError {
 }
 
 /// Where the interaction matrix is evaluated (MATH D10, §8).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum InteractionSource {
-    /// Exact matrix (chain rule [M29] and the closed forms of §7) at the observation passed in, normally the current
+    /// Exact matrix (chain rule \[M29\] and the closed forms of §7) at the observation passed in, normally the current
     /// one, with its exact depths.
     #[default]
     Exact,
-    /// The paper's approximate forms with a priori depths: (F31), (F32)/[M33], (F35)/[M39]. Features without such a
+    /// The paper's approximate forms with a priori depths: (F31), (F32)/\[M33\], (F35)/\[M39\]. Features without such a
     /// form use their exact matrix (stated in each feature's docs).
     PaperApprox,
     /// The exact matrix evaluated at the desired pose: pass the **desired** observation to
@@ -286,8 +288,12 @@ impl<'a> Observation<'a> {
     /// [`FeatureError::TooFewPoints`] for an empty slice; [`FeatureError::NonFinitePoint`] /
     /// [`FeatureError::NonFinitePlane`] for NaN or infinite inputs (every field is checked, even the depths that a
     /// plane makes unused); [`FeatureError::PointBehindCamera`] when a depth in use is `≤ 0`;
-    /// [`FeatureError::PlaneBehindCamera`] when the plane gives `1/Z ≤ 0` at a point.
-    pub fn new(points: &'a [ImagePoint], plane: Option<&TargetPlane>) -> Result<Self, FeatureError> {
+    /// [`FeatureError::PlaneBehindCamera`] when the plane gives `1/Z ≤ 0` at a point;
+    /// [`FeatureError::NonFiniteResult`] when the moments overflow (coordinates beyond about 1e75).
+    pub fn new(
+        points: &'a [ImagePoint],
+        plane: Option<&TargetPlane>,
+    ) -> Result<Self, FeatureError> {
         if points.is_empty() {
             return Err(FeatureError::TooFewPoints {
                 feature: "observation",
@@ -334,6 +340,9 @@ impl<'a> Observation<'a> {
         }
         let plane = plane.copied();
         let moments = Moments::compute(points, |p| inverse_depth(plane.as_ref(), p));
+        if !moments.is_finite() {
+            return Err(FeatureError::NonFiniteResult { feature: "moments" });
+        }
         Ok(Self {
             points,
             plane,
@@ -373,7 +382,7 @@ impl<'a> Observation<'a> {
             .map(|p| inverse_depth(self.plane.as_ref(), p))
     }
 
-    /// The image point k and its interaction rows `(L_x, L_y)` [M28], or `None` when `k` is out of range.
+    /// The image point k and its interaction rows `(L_x, L_y)` \[M28\], or `None` when `k` is out of range.
     fn point_rows(&self, k: usize) -> Option<(ImagePoint, InteractionRow, InteractionRow)> {
         let p = self.points.get(k)?;
         let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(self.plane.as_ref(), p));
@@ -389,7 +398,7 @@ fn inverse_depth(plane: Option<&TargetPlane>, p: &ImagePoint) -> f64 {
     }
 }
 
-/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), MATH [M28]:
+/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), MATH \[M28\]:
 ///
 /// ```text
 /// L_x = [ −ζ   0   xζ   xy      −(1+x²)   y ]
@@ -512,7 +521,10 @@ pub trait Feature {
     }
 }
 
-fn check_points<F: Feature + ?Sized>(feature: &F, obs: &Observation<'_>) -> Result<(), FeatureError> {
+fn check_points<F: Feature + ?Sized>(
+    feature: &F,
+    obs: &Observation<'_>,
+) -> Result<(), FeatureError> {
     if obs.len() < feature.min_points() {
         return Err(FeatureError::TooFewPoints {
             feature: feature.name(),
@@ -554,5 +566,122 @@ fn write_rows(mut l: InteractionRows<'_>, rows: &[InteractionRow]) {
 fn write_values(s: &mut [f64], values: &[f64]) {
     for (dst, src) in s.iter_mut().zip(values) {
         *dst = *src;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testutil::*;
+    use super::*;
+    use approx::assert_relative_eq;
+    use proptest::prelude::*;
+
+    #[test]
+    fn bad_observations_are_errors() {
+        assert_eq!(
+            Observation::new(&[], None).err(),
+            Some(FeatureError::TooFewPoints {
+                feature: "observation",
+                needed: 1,
+                got: 0
+            })
+        );
+        let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+        pts[1].y = f64::NAN;
+        assert!(matches!(
+            Observation::new(&pts, None),
+            Err(FeatureError::NonFinitePoint { index: 1, .. })
+        ));
+        let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+        pts[3].depth = f64::INFINITY;
+        assert!(matches!(
+            Observation::new(&pts, None),
+            Err(FeatureError::NonFinitePoint { index: 3, .. })
+        ));
+        for depth in [0.0, -0.2] {
+            let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+            pts[2].depth = depth;
+            assert_eq!(
+                Observation::new(&pts, None).err(),
+                Some(FeatureError::PointBehindCamera { index: 2, depth })
+            );
+        }
+        let pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+        let nan_plane = TargetPlane {
+            a: 0.0,
+            b: f64::NAN,
+            c: 2.0,
+        };
+        assert!(matches!(
+            Observation::new(&pts, Some(&nan_plane)),
+            Err(FeatureError::NonFinitePlane { .. })
+        ));
+        // A plane that passes through the camera's field of view behind it: 1/Z = 10 x + 1 is ≤ 0 at x = −0.2.
+        let behind = TargetPlane {
+            a: 10.0,
+            b: 0.0,
+            c: 1.0,
+        };
+        assert_eq!(
+            Observation::new(&pts, Some(&behind)).err(),
+            Some(FeatureError::PlaneBehindCamera {
+                index: 0,
+                inverse_depth: -1.0
+            })
+        );
+    }
+
+    /// Overflow inside a feature is reported, not returned as a non-finite value.
+    #[test]
+    fn overflow_is_an_error() {
+        let pts = [
+            ImagePoint::new(0.0, 0.0, 1.0),
+            ImagePoint::new(1e70, 0.0, 1.0),
+            ImagePoint::new(0.0, 1e70, 1.0),
+        ];
+        let obs = Observation::new(&pts, None).unwrap();
+        let mut s = [0.0; 2];
+        assert_eq!(
+            VispInvariants.value(&obs, &mut s),
+            Err(FeatureError::NonFiniteResult {
+                feature: "ViSP P_x, P_y"
+            })
+        );
+        let huge = [
+            ImagePoint::new(1e155, 0.0, 1.0),
+            ImagePoint::new(0.0, 0.0, 1.0),
+        ];
+        assert_eq!(
+            Observation::new(&huge, None).err(),
+            Some(FeatureError::NonFiniteResult { feature: "moments" })
+        );
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        /// With the true plane, inverse depths and moments agree with the per-point depths.
+        #[test]
+        fn plane_and_depths_agree(pose in tilted_pose_strategy()) {
+            let (pts, plane) = Scene::new(pose, rectangle(0.2, 0.14)).image();
+            let with_plane = Observation::new(&pts, Some(&plane)).unwrap();
+            let with_depths = Observation::new(&pts, None).unwrap();
+            for (k, p) in pts.iter().enumerate() {
+                assert_relative_eq!(with_plane.inverse_depth(k).unwrap(), 1.0 / p.depth, max_relative = 1e-12);
+            }
+            prop_assert_eq!(with_plane.inverse_depth(4), None);
+            let (a, b) = (with_plane.moments(), with_depths.moments());
+            assert_relative_eq!(a.interaction_mu(2, 1).unwrap(), b.interaction_mu(2, 1).unwrap(), max_relative = 1e-10);
+        }
+
+        /// Errors of angle rows land in (−π, π] and equal s − s* modulo 2π.
+        #[test]
+        fn angle_errors_are_wrapped(s in -10.0..10.0f64, s_star in -10.0..10.0f64) {
+            let mut e = [0.0];
+            DiagonalAngle::default().error(&[s], &[s_star], &mut e).unwrap();
+            let pi = std::f64::consts::PI;
+            prop_assert!(e[0] > -pi && e[0] <= pi);
+            let turns = (s - s_star - e[0]) / (2.0 * pi);
+            prop_assert!((turns - turns.round()).abs() < 1e-9);
+        }
     }
 }

@@ -1,4 +1,4 @@
-//! Centroid and centred moments of a point set with their exact interaction rows, MATH [M30], [M34]–[M35] (F33).
+//! Centroid and centred moments of a point set with their exact interaction rows, MATH \[M30\], \[M34\]–\[M35\] (F33).
 
 use super::{point_interaction, FeatureError, InteractionRow, RELATIVE_TOLERANCE};
 use crate::camera::ImagePoint;
@@ -9,14 +9,14 @@ const MAX_ORDER: usize = 3;
 /// The centroid and the centred moments `μ_ij` (`i + j ≤ 3`) of a set of N image points, with their exact
 /// interaction rows, computed once per point set by [`super::Observation::new`] and shared by every feature.
 ///
-/// Definitions (MATH [M30], [M34], (F30), (F33)), **without** a `1/N` factor on the moments:
+/// Definitions (MATH \[M30\], \[M34\], (F30), (F33)), **without** a `1/N` factor on the moments:
 ///
 /// ```text
 /// x_g = (1/N) Σ x_k,   y_g = (1/N) Σ y_k,   μ_ij = Σ_k (x_k − x_g)^i (y_k − y_g)^j   (μ_00 = N, μ_10 = μ_01 = 0)
 /// ```
 ///
-/// Interaction rows by the chain rule [M29] over the point rows [M28]: `L_{x_g} = (1/N) Σ L_{x_k}` (exact [M31]) and
-/// [M35], summed as
+/// Interaction rows by the chain rule \[M29\] over the point rows \[M28\]: `L_{x_g} = (1/N) Σ L_{x_k}` (exact \[M31\]) and
+/// \[M35\], summed as
 /// `L_{μ_ij} = i (Σ_k Δx^{i−1} Δy^j L_{x_k} − μ_{i−1,j} L_{x_g}) + j (Σ_k Δx^i Δy^{j−1} L_{y_k} − μ_{i,j−1} L_{y_g})`
 /// with `Δx = x_k − x_g`, `Δy = y_k − y_g`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,7 +34,10 @@ pub struct Moments {
 
 impl Moments {
     /// Moments of validated, non-empty `points`, with `inverse_depth(p)` the (positive, finite) `1/Z` of each.
-    pub(super) fn compute(points: &[ImagePoint], inverse_depth: impl Fn(&ImagePoint) -> f64) -> Self {
+    pub(super) fn compute(
+        points: &[ImagePoint],
+        inverse_depth: impl Fn(&ImagePoint) -> f64,
+    ) -> Self {
         let n = points.len();
         let inv_n = 1.0 / n as f64;
         let zero = InteractionRow::zeros();
@@ -105,42 +108,54 @@ impl Moments {
         }
     }
 
+    /// `true` when every moment and row is finite (false only on overflow of extreme coordinates).
+    pub(super) fn is_finite(&self) -> bool {
+        let rows = [&self.l_xg, &self.l_yg]
+            .into_iter()
+            .chain(self.l_mu.iter().flatten());
+        [self.xg, self.yg, self.scale]
+            .iter()
+            .chain(self.mu.iter().flatten())
+            .all(|v| v.is_finite())
+            && rows.into_iter().all(crate::math::all_finite)
+    }
+
     /// Number of points N.
     pub fn count(&self) -> usize {
         self.n
     }
 
-    /// Centroid abscissa `x_g` [M30].
+    /// Centroid abscissa `x_g` \[M30\].
     pub fn xg(&self) -> f64 {
         self.xg
     }
 
-    /// Centroid ordinate `y_g` [M30].
+    /// Centroid ordinate `y_g` \[M30\].
     pub fn yg(&self) -> f64 {
         self.yg
     }
 
-    /// Exact interaction row of `x_g`, `(1/N) Σ L_{x_k}` ([M29], equal to [M31] with the plane model).
+    /// Exact interaction row of `x_g`, `(1/N) Σ L_{x_k}` (\[M29\], equal to \[M31\] with the plane model).
     pub fn interaction_xg(&self) -> &InteractionRow {
         &self.l_xg
     }
 
-    /// Exact interaction row of `y_g`, `(1/N) Σ L_{y_k}` ([M29], equal to [M31] with the plane model).
+    /// Exact interaction row of `y_g`, `(1/N) Σ L_{y_k}` (\[M29\], equal to \[M31\] with the plane model).
     pub fn interaction_yg(&self) -> &InteractionRow {
         &self.l_yg
     }
 
-    /// Centred moment `μ_ij` [M34], or `None` when `i + j > 3`.
+    /// Centred moment `μ_ij` \[M34\], or `None` when `i + j > 3`.
     pub fn mu(&self, i: usize, j: usize) -> Option<f64> {
         (i + j <= MAX_ORDER).then(|| self.mu[i][j])
     }
 
-    /// Exact interaction row of `μ_ij` [M35], or `None` when `i + j > 3`.
+    /// Exact interaction row of `μ_ij` \[M35\], or `None` when `i + j > 3`.
     pub fn interaction_mu(&self, i: usize, j: usize) -> Option<&InteractionRow> {
         (i + j <= MAX_ORDER).then(|| &self.l_mu[i][j])
     }
 
-    /// The second-order size `a = μ20 + μ02` [M37] (`= I3` of [M40]) and its row `L_{μ20} + L_{μ02}`.
+    /// The second-order size `a = μ20 + μ02` \[M37\] (`= I3` of \[M40\]) and its row `L_{μ20} + L_{μ02}`.
     ///
     /// # Errors
     /// [`FeatureError::DegenerateArea`] when `a ≤ RELATIVE_TOLERANCE · Σ (x_k² + y_k²)` (the points coincide).
@@ -155,7 +170,7 @@ impl Moments {
         Ok((a, self.l_mu[2][0] + self.l_mu[0][2]))
     }
 
-    /// Second-order terms of [M40]: `c1 = μ20 − μ02`, `s1 = 2 μ11`, `I1 = c1² + s1²`, `I3 = a` and their rows.
+    /// Second-order terms of \[M40\]: `c1 = μ20 − μ02`, `s1 = 2 μ11`, `I1 = c1² + s1²`, `I3 = a` and their rows.
     ///
     /// # Errors
     /// [`FeatureError::DegenerateArea`] as [`Moments::size`].
@@ -190,7 +205,7 @@ impl Moments {
         Ok(o)
     }
 
-    /// Third-order terms of [M40]: `c2 = μ03 − 3 μ21`, `s2 = μ30 − 3 μ12` and their rows.
+    /// Third-order terms of \[M40\]: `c2 = μ03 − 3 μ21`, `s2 = μ30 − 3 μ12` and their rows.
     pub(super) fn third_order_terms(&self) -> (f64, f64, InteractionRow, InteractionRow) {
         let m = &self.mu;
         let l = &self.l_mu;
@@ -203,7 +218,7 @@ impl Moments {
     }
 }
 
-/// Second-order terms shared by the orientation and the invariants ([M40]–[M41]).
+/// Second-order terms shared by the orientation and the invariants (\[M40\]–\[M41\]).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Orientation {
     pub c1: f64,

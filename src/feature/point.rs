@@ -1,9 +1,9 @@
-//! Image point features, MATH [M28] (§7.1).
+//! Image point features, MATH \[M28\] (§7.1).
 
 use super::{Feature, FeatureError, InteractionRows, InteractionSource, Observation};
 
-/// The image point number `index`: `s = (x_k, y_k)` (normalised), interaction rows [M28] with the point's exact
-/// depth. The paper has no approximate form for points, so every [`InteractionSource`] uses [M28] on the observation
+/// The image point number `index`: `s = (x_k, y_k)` (normalised), interaction rows \[M28\] with the point's exact
+/// depth. The paper has no approximate form for points, so every [`InteractionSource`] uses \[M28\] on the observation
 /// passed in (for `Desired`, the desired observation, i.e. the desired depths).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Point {
@@ -47,8 +47,8 @@ impl Feature for Point {
     }
 }
 
-/// All N points of the observation, stacked: `s = (x_1, y_1, …, x_N, y_N)` (2N rows), rows [M28] (the classical
-/// point-based task, PEER_SCENE variant A). Every [`InteractionSource`] uses [M28], as for [`Point`].
+/// All N points of the observation, stacked: `s = (x_1, y_1, …, x_N, y_N)` (2N rows), rows \[M28\] (the classical
+/// point-based task, PEER_SCENE variant A). Every [`InteractionSource`] uses \[M28\], as for [`Point`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AllPoints {
     count: usize,
@@ -112,7 +112,14 @@ fn rows<F: Feature>(
     feature: &F,
     obs: &Observation<'_>,
     k: usize,
-) -> Result<(crate::camera::ImagePoint, super::InteractionRow, super::InteractionRow), FeatureError> {
+) -> Result<
+    (
+        crate::camera::ImagePoint,
+        super::InteractionRow,
+        super::InteractionRow,
+    ),
+    FeatureError,
+> {
     obs.point_rows(k).ok_or(FeatureError::TooFewPoints {
         feature: feature.name(),
         needed: k + 1,

@@ -2,8 +2,9 @@
 //! (PEER_SCENE variant B).
 
 use super::{
-    AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature, FeatureError, InteractionRows,
-    InteractionSource, MomentOrientation, NormalizedCentroid, Observation, PaperInvariants, VispInvariants,
+    AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature, FeatureError,
+    InteractionRows, InteractionSource, MomentOrientation, NormalizedCentroid, Observation,
+    PaperInvariants, VispInvariants,
 };
 
 /// A boxed feature that a [`FeatureSet`] can hold and share across threads.
@@ -60,7 +61,11 @@ impl FeatureSet {
     }
 
     /// The classical full task (§7.7): `s = (x_g, y_g, α, a_n, P_x, P_y)`, 6 rows, row 2 an angle.
-    pub fn paper_full(centroid: Centroid, angle: DiagonalAngle, normalization: AreaNormalization) -> Self {
+    pub fn paper_full(
+        centroid: Centroid,
+        angle: DiagonalAngle,
+        normalization: AreaNormalization,
+    ) -> Self {
         Self::new(vec![
             Box::new(centroid),
             Box::new(angle),
@@ -176,15 +181,24 @@ mod tests {
     #[test]
     fn layout_of_the_sets() {
         let (c, a, n) = paper_params();
-        let dims: Vec<usize> = FeatureSet::paper_tasks(c, a, n).iter().map(|t| t.dim()).collect();
+        let dims: Vec<usize> = FeatureSet::paper_tasks(c, a, n)
+            .iter()
+            .map(|t| t.dim())
+            .collect();
         assert_eq!(dims, [2, 1, 1, 2]);
         let full = FeatureSet::paper_full(c, a, n);
         assert_eq!(full.dim(), 6);
-        assert_eq!((0..7).map(|r| full.is_angle(r)).collect::<Vec<_>>(), [false, false, true, false, false, false, false]);
+        assert_eq!(
+            (0..7).map(|r| full.is_angle(r)).collect::<Vec<_>>(),
+            [false, false, true, false, false, false, false]
+        );
         assert_eq!(full.min_points(), 3);
         let visp = FeatureSet::visp_moments(n);
         assert_eq!(visp.dim(), 6);
-        assert_eq!((0..6).filter(|&r| visp.is_angle(r)).collect::<Vec<_>>(), [5]);
+        assert_eq!(
+            (0..6).filter(|&r| visp.is_angle(r)).collect::<Vec<_>>(),
+            [5]
+        );
     }
 
     /// Variant B at the desired pose of PEER_SCENE (rectangle 0.2 × 0.1 m fronto-parallel at 0.5 m): hand values
@@ -228,7 +242,11 @@ mod tests {
         let mut l = Rows::zeros(7);
         assert!(matches!(
             full.interaction(&obs, InteractionSource::Exact, l.rows_mut(0, 7)),
-            Err(FeatureError::WrongDimension { expected: 6, got: 7, .. })
+            Err(FeatureError::WrongDimension {
+                expected: 6,
+                got: 7,
+                ..
+            })
         ));
         let mut e = [0.0; 6];
         let bad = [0.0, 0.0, f64::NAN, 0.0, 0.0, 0.0];
@@ -240,7 +258,11 @@ mod tests {
         let mut s6 = [0.0; 6];
         assert!(matches!(
             full.value(&obs2, &mut s6),
-            Err(FeatureError::TooFewPoints { needed: 3, got: 2, .. })
+            Err(FeatureError::TooFewPoints {
+                needed: 3,
+                got: 2,
+                ..
+            })
         ));
     }
 }

@@ -3,7 +3,10 @@
 use super::{Feature, InteractionSource, Observation};
 use crate::camera::ImagePoint;
 use crate::target::TargetPlane;
-use nalgebra::{Dim, Dyn, Isometry3, Matrix, OMatrix, RawStorage, Point3, Translation3, UnitQuaternion, Vector3, Vector6, U6};
+use nalgebra::{
+    Dim, Dyn, Isometry3, Matrix, OMatrix, Point3, RawStorage, Translation3, UnitQuaternion,
+    Vector3, Vector6, U6,
+};
 use proptest::prelude::*;
 
 /// Interaction matrix storage used by the tests.
@@ -41,15 +44,10 @@ pub fn tilted_pose_strategy() -> impl Strategy<Value = Isometry3<f64>> {
 }
 
 /// As [`tilted_pose_strategy`], with the in-plane rotation drawn from `yaw`.
-pub fn tilted_pose_strategy_yaw(yaw: std::ops::Range<f64>) -> impl Strategy<Value = Isometry3<f64>> {
-    (
-        -0.1..0.1f64,
-        -0.1..0.1f64,
-        0.6..1.0f64,
-        tilt(),
-        tilt(),
-        yaw,
-    )
+pub fn tilted_pose_strategy_yaw(
+    yaw: std::ops::Range<f64>,
+) -> impl Strategy<Value = Isometry3<f64>> {
+    (-0.1..0.1f64, -0.1..0.1f64, 0.6..1.0f64, tilt(), tilt(), yaw)
         .prop_map(|(tx, ty, z, rx, ry, rz)| pose(tx, ty, z, rx, ry, rz))
 }
 
@@ -112,7 +110,12 @@ impl Scene {
     }
 
     /// The feature's interaction matrix for `source`, evaluated on this scene.
-    pub fn interaction<F: Feature + ?Sized>(&self, f: &F, source: InteractionSource, use_plane: bool) -> Rows {
+    pub fn interaction<F: Feature + ?Sized>(
+        &self,
+        f: &F,
+        source: InteractionSource,
+        use_plane: bool,
+    ) -> Rows {
         let (pts, plane) = self.image();
         let obs = Observation::new(&pts, use_plane.then_some(&plane)).unwrap();
         let mut l = Rows::zeros(f.dim());
@@ -157,6 +160,13 @@ pub fn assert_close<R: Dim, C: Dim, S1: RawStorage<f64, R, C>, S2: RawStorage<f6
     assert_eq!(a.shape(), b.shape());
     let scale = b.amax();
     assert!(scale > 0.0, "reference is zero");
-    let err = a.iter().zip(b.iter()).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-    assert!(err <= rel * scale, "error {err:e} > {rel:e} · {scale:e}\n{a}\n{b}");
+    let err = a
+        .iter()
+        .zip(b.iter())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        err <= rel * scale,
+        "error {err:e} > {rel:e} · {scale:e}\n{a}\n{b}"
+    );
 }
