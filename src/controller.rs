@@ -18,8 +18,9 @@
 //! refinement of D6) keeps the controller from removing tasks while the current stack already moves away from the
 //! obstacle — for instance just after a removal, when the transition has carried `q` a little past the threshold.
 //!
-//! A change decided at iteration `k` takes effect at iteration `k + 1`: the law then blends from the velocity actually
-//! sent at `k`, so `q̇(τ⁺) = q̇(τ⁻)` exactly (D1). Tasks are identified by their index in the task list, which is also
+//! A change decided at iteration `k` takes effect at once (§6.5: "remove, τ ← t, recompute"): the law is solved again
+//! on the new stack and blended from the velocity sent at iteration `k − 1`, so `q̇(τ⁺) = q̇(τ⁻)` exactly (D1). At most
+//! one change happens per iteration. Tasks are identified by their index in the task list, which is also
 //! their priority (index 0 highest).
 //!
 //! **Criteria** (§6.3), for every stacked task `i` with its own Jacobian `J_i` and the gradient `g = ∇h(q)`:
@@ -215,7 +216,8 @@ pub struct RemovalReport {
 /// One change of the stack, as the event log records it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct StackEvent {
-    /// The control iteration at which the change was decided (it takes effect at the next iteration).
+    /// The control iteration at which the change was made (the velocity sent at this iteration is the new stack's,
+    /// blended from the one sent at the previous iteration).
     pub iteration: usize,
     /// The time of that iteration (s).
     pub time: f64,
@@ -238,7 +240,7 @@ pub struct ControllerStep<const N: usize> {
     pub cost: f64,
     /// `h(q̂)`, the cost predicted at `q̂ = q + T_pred u` (equal to `h(q)` without a cost or with a zero horizon).
     pub predicted_cost: f64,
-    /// The change decided at this iteration (effective at the next one), if any.
+    /// The change made at this iteration, if any.
     pub event: Option<EventKind>,
 }
 
@@ -303,7 +305,7 @@ impl<const N: usize> StackController<N> {
         &self.parameters
     }
 
-    /// The tasks currently stacked, highest priority first (the stack as the next iteration will solve it).
+    /// The tasks currently stacked, highest priority first (after this iteration's change, if any).
     pub fn stacked(&self) -> &[usize] {
         &self.stacked
     }
@@ -389,7 +391,9 @@ impl<const N: usize> StackController<N> {
         } else {
             StackChange::Unchanged
         };
-        let output: ControlOutput<N> = control_step(
+        // q̇(τ⁻) of a change decided at this iteration: the velocity sent at the previous one.
+        let velocity_sent_before = *self.law_workspace.last_output().velocity();
+        let output = control_step(
             law,
             &mut self.law_workspace,
             tasks,
@@ -400,23 +404,77 @@ impl<const N: usize> StackController<N> {
             change,
         )?
         .clone();
+        let mut result = self.summarize(&output);
         self.change_pending = false;
-        let stack_velocity_norm = self.law_workspace.stack_solution().velocity().norm();
-        let mut result = ControllerStep {
+        let gradient = *output.gradient();
+        let law_velocity = *output.law();
+        let event = self.decide(
+            law,
+            tasks,
+            cost,
+            q,
+            &gradient,
+            &law_velocity,
+            iteration,
+            time,
+            &mut result,
+        )?;
+        if let Some(kind) = event {
+            // MATH §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
+            // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1).
+            self.law_workspace.reset(&velocity_sent_before);
+            let changed = StackChange::Changed;
+            let output = control_step(
+                law,
+                &mut self.law_workspace,
+                tasks,
+                &self.stacked,
+                cost,
+                q,
+                time,
+                changed,
+            )?
+            .clone();
+            let predicted_cost = result.predicted_cost;
+            result = self.summarize(&output);
+            result.predicted_cost = predicted_cost;
+            result.event = Some(kind);
+        }
+        Ok(result)
+    }
+
+    fn summarize(&self, output: &ControlOutput<N>) -> ControllerStep<N> {
+        ControllerStep {
             velocity: *output.velocity(),
-            stack_velocity_norm,
+            stack_velocity_norm: self.law_workspace.stack_solution().velocity().norm(),
             cost: output.cost(),
             predicted_cost: output.cost(),
             event: None,
-        };
-        let gradient = *output.gradient();
+        }
+    }
+
+    /// Steps 4–5 of MATH §6.5: a removal (D6) or else a re-insertion (D7) or a push (D5), applied to the stack and
+    /// logged. `result` receives the predicted cost.
+    #[allow(clippy::too_many_arguments)]
+    fn decide(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: Option<&dyn Cost<N>>,
+        q: &JointVector<N>,
+        gradient: &JointVector<N>,
+        law_velocity: &JointVector<N>,
+        iteration: usize,
+        time: f64,
+        result: &mut ControllerStep<N>,
+    ) -> Result<Option<EventKind>, ControllerError> {
         self.criteria.clear();
         if let Some(cost) = cost {
-            let predicted = q + output.law() * self.parameters.prediction_horizon;
+            let predicted = q + law_velocity * self.parameters.prediction_horizon;
             let mut predicted_gradient = JointVector::zeros();
             result.predicted_cost = cost.value_and_gradient(&predicted, &mut predicted_gradient)?;
             if gradient.norm() > 0.0 {
-                self.compute_criteria(law, tasks, &gradient);
+                self.compute_criteria(law, tasks, gradient);
             }
             let threshold = self.parameters.removal_threshold.unwrap_or(f64::INFINITY);
             let may_remove =
@@ -433,22 +491,23 @@ impl<const N: usize> StackController<N> {
                     criteria: self.criteria.clone(),
                 };
                 self.record(iteration, time, EventKind::Remove, task, Some(report));
-                result.event = Some(EventKind::Remove);
-                return Ok(result);
+                return Ok(Some(EventKind::Remove));
             }
         }
-        if self.settled(law, time, stack_velocity_norm) {
-            if let Some(task) = self.reinsertable(law, tasks, cost, q)? {
-                self.removed.retain(|&t| t != task);
-                self.insert_by_priority(task);
-                self.record(iteration, time, EventKind::Reinsert, task, None);
-                result.event = Some(EventKind::Reinsert);
-            } else if self.removed.is_empty() && self.next_push < self.task_count {
-                self.push_next(iteration, time);
-                result.event = Some(EventKind::Push);
-            }
+        if !self.settled(law, time, result.stack_velocity_norm) {
+            return Ok(None);
         }
-        Ok(result)
+        if let Some(task) = self.reinsertable(law, tasks, cost, q)? {
+            self.removed.retain(|&t| t != task);
+            self.insert_by_priority(task);
+            self.record(iteration, time, EventKind::Reinsert, task, None);
+            return Ok(Some(EventKind::Reinsert));
+        }
+        if self.removed.is_empty() && self.next_push < self.task_count {
+            self.push_next(iteration, time);
+            return Ok(Some(EventKind::Push));
+        }
+        Ok(None)
     }
 
     /// D5: the stack velocity is small and the last transition has died out.

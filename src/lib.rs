@@ -11,6 +11,8 @@ pub mod law;
 pub mod linalg;
 pub mod math;
 pub mod robot;
+pub mod sim;
 pub mod stack;
 pub mod target;
 pub mod task;
+pub mod visual_task;

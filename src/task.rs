@@ -24,10 +24,13 @@
 //! ```
 
 use crate::math::{all_finite, JointVector};
-use nalgebra::{Const, DVector, Dyn, OMatrix};
+use nalgebra::{Const, DVector, Dyn, OMatrix, U6};
 
 /// A task Jacobian: `m` rows (run-time), `N` joint columns.
 pub type TaskJacobian<const N: usize> = OMatrix<f64, Dyn, Const<N>>;
+
+/// The interaction matrix of a sensor-based task: `m` rows, 6 columns, `ṡ = L v` for the sensor twist `v = (υ, ω)`.
+pub type InteractionMatrix = OMatrix<f64, Dyn, U6>;
 
 /// Errors of task construction and evaluation.
 #[non_exhaustive]
@@ -77,12 +80,14 @@ pub enum TaskError {
     },
 }
 
-/// The evaluated task: error `e_i` (`m_i`), Jacobian `J_i` (`m_i × N`) and gain `λ_i` (s⁻¹). Its storage is allocated
-/// once, by [`TaskValue::new`] or [`TaskValue::for_task`]; evaluating a task only overwrites it.
+/// The evaluated task: error `e_i` (`m_i`), Jacobian `J_i` (`m_i × N`) and gain `λ_i` (s⁻¹), plus, for a sensor-based
+/// task, its interaction matrix `L_i` (`m_i × 6`, with `J_i = L_i W J_q`, MATH [M42]; zero for joint-space tasks). Its
+/// storage is allocated once, by [`TaskValue::new`] or [`TaskValue::for_task`]; evaluating a task only overwrites it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskValue<const N: usize> {
     error: DVector<f64>,
     jacobian: TaskJacobian<N>,
+    interaction: InteractionMatrix,
     gain: f64,
 }
 
@@ -99,6 +104,7 @@ impl<const N: usize> TaskValue<N> {
         Ok(Self {
             error: DVector::zeros(rows),
             jacobian: TaskJacobian::zeros(rows),
+            interaction: InteractionMatrix::zeros(rows),
             gain,
         })
     }
@@ -163,9 +169,25 @@ impl<const N: usize> TaskValue<N> {
         self.gain
     }
 
+    /// The interaction matrix `L_i` of a sensor-based task (zero for joint-space tasks).
+    pub fn interaction(&self) -> &InteractionMatrix {
+        &self.interaction
+    }
+
     /// Mutable access to error and Jacobian for a [`Task::evaluate`] implementation. Sizes cannot change.
     pub fn parts_mut(&mut self) -> (&mut DVector<f64>, &mut TaskJacobian<N>) {
         (&mut self.error, &mut self.jacobian)
+    }
+
+    /// Mutable access to error, Jacobian and interaction matrix, for a sensor-based [`Task::evaluate`].
+    pub fn sensor_parts_mut(
+        &mut self,
+    ) -> (
+        &mut DVector<f64>,
+        &mut TaskJacobian<N>,
+        &mut InteractionMatrix,
+    ) {
+        (&mut self.error, &mut self.jacobian, &mut self.interaction)
     }
 
     /// Checks that error and Jacobian are finite (the stack solve calls this on every level).

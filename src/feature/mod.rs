@@ -91,7 +91,7 @@ pub use centroid::{Centroid, NormalizedCentroid};
 pub use invariants::{PaperInvariants, VispInvariants};
 pub use moments::Moments;
 pub use point::{AllPoints, Point};
-pub use set::FeatureSet;
+pub use set::{BoxedFeature, FeatureSet};
 
 use crate::camera::ImagePoint;
 use crate::math::wrap_angle;
