@@ -16,3 +16,4 @@ pub mod stack;
 pub mod target;
 pub mod task;
 pub mod visual_task;
+pub mod scenario;

@@ -201,7 +201,7 @@ impl<const N: usize> Scene<N> {
 
 /// Parameters of a simulation run.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct SimulationParameters {
     /// The control period `Δt` (s).
     pub period: f64,
