@@ -2,6 +2,8 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 
-pub mod math;
 pub mod camera;
+pub mod math;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod target;
