@@ -1233,4 +1233,250 @@ mod tests {
             ],
         );
     }
+
+    /// `(x, y, content)` of every `<text>` element of an SVG written by plotters.
+    fn svg_texts(svg: &str) -> Vec<(f64, f64, String)> {
+        let attr = |tag: &str, name: &str| -> f64 {
+            let start = tag.find(&format!(" {name}=\"")).unwrap() + name.len() + 3;
+            let len = tag[start..].find('"').unwrap();
+            tag[start..start + len].parse().unwrap()
+        };
+        svg.split("<text ")
+            .skip(1)
+            .map(|chunk| {
+                let (tag, rest) = chunk.split_once('>').unwrap();
+                let tag = format!(" {tag}");
+                let content = rest.split("</text>").next().unwrap().trim().to_owned();
+                (attr(&tag, "x"), attr(&tag, "y"), content)
+            })
+            .collect()
+    }
+
+    fn text_position(texts: &[(f64, f64, String)], content: &str) -> (f64, f64) {
+        let found = texts.iter().find(|t| t.2 == content);
+        let (x, y, _) = found.unwrap_or_else(|| panic!("no text {content:?}"));
+        (*x, *y)
+    }
+
+    #[test]
+    fn legend_is_right_of_the_data_and_event_labels_are_staggered() {
+        let out = OutDir::new("layout");
+        let files = joints_plot().render(&out.0, "joints").unwrap();
+        let svg = std::fs::read_to_string(&files.svg).unwrap();
+        // Rightmost pixel of any curve or line.
+        let data_right = svg
+            .split("points=\"")
+            .skip(1)
+            .flat_map(|chunk| chunk.split('"').next().unwrap().split_whitespace())
+            .map(|point| point.split(',').next().unwrap().parse::<f64>().unwrap())
+            .fold(f64::NEG_INFINITY, f64::max);
+        let texts = svg_texts(&svg);
+        for name in ["q1", "q6", "joint limits"] {
+            assert!(
+                text_position(&texts, name).0 > data_right,
+                "legend entry {name:?} overlaps the data"
+            );
+        }
+        // Events at 60, 70 and 78 are a few pixels apart: three rows. The event at 250 is far: first row.
+        let rows: Vec<f64> = ["push e2", "push e3", "remove e1", "reinsert e1"]
+            .iter()
+            .map(|label| text_position(&texts, label).1)
+            .collect();
+        assert!(
+            rows[0] > rows[1] && rows[1] > rows[2],
+            "close labels not stacked: {rows:?}"
+        );
+        assert_eq!(rows[3], rows[0]);
+    }
+
+    /// Pixel row of the start circle of a single trajectory going from y = -1 to y = +1.
+    fn start_circle_row(y_down: bool) -> f64 {
+        let out = OutDir::new(if y_down { "down" } else { "up" });
+        let plot = TrajectoryPlot {
+            trajectories: vec![Trajectory::new("p", [(0.0, -1.0), (0.0, 1.0)], None)],
+            y_down,
+            ..TrajectoryPlot::default()
+        };
+        let files = plot.render(&out.0, "flip").unwrap();
+        let svg = std::fs::read_to_string(&files.svg).unwrap();
+        let circle = svg.split("<circle ").nth(1).unwrap();
+        let cy = circle
+            .split("cy=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap();
+        cy.parse().unwrap()
+    }
+
+    #[test]
+    fn image_y_axis_points_down() {
+        let (_, height) = DEFAULT_SIZE;
+        let half = f64::from(height) / 2.0;
+        assert!(
+            start_circle_row(true) < half,
+            "y = -1 must be at the top of a camera image"
+        );
+        assert!(
+            start_circle_row(false) > half,
+            "y = -1 must be at the bottom of an upward axis"
+        );
+    }
+
+    #[test]
+    fn equal_aspect_matches_units_per_pixel() {
+        // x spans 2 on 400 px (0.005/px), y spans 1 on 100 px (0.01/px): x widens to 4 about its centre 1.
+        let (x, y) = equalise_aspect((0.0, 2.0), (0.0, 1.0), 400, 100);
+        assert_eq!((x, y), ((-1.0, 3.0), (0.0, 1.0)));
+        // x spans 4 on 400 px (0.01/px), y spans 1 on 200 px (0.005/px): y widens to 2 about its centre 0.5.
+        let (x, y) = equalise_aspect((0.0, 4.0), (0.0, 1.0), 400, 200);
+        assert_eq!((x, y), ((0.0, 4.0), (-0.5, 1.5)));
+    }
+
+    #[test]
+    fn automatic_ranges_pad_the_data() {
+        let r = axis_range("y", None, Some((0.0, 10.0)), Scale::Linear).unwrap();
+        assert_eq!(r, (-0.5, 10.5));
+        // Constant data: ±10 % of the value, or ±0.5 around zero.
+        assert_eq!(
+            axis_range("y", None, Some((2.0, 2.0)), Scale::Linear).unwrap(),
+            (1.8, 2.2)
+        );
+        assert_eq!(
+            axis_range("y", None, Some((0.0, 0.0)), Scale::Linear).unwrap(),
+            (-0.5, 0.5)
+        );
+        // Three decades: 0.15 decade each side.
+        let (lo, hi) = axis_range("y", None, Some((1e-3, 1.0)), Scale::Log10).unwrap();
+        approx::assert_relative_eq!(lo.log10(), -3.15, epsilon = 1e-12);
+        approx::assert_relative_eq!(hi.log10(), 0.15, epsilon = 1e-12);
+        // An explicit range wins.
+        assert_eq!(
+            axis_range("x", Some((1.0, 2.0)), Some((0.0, 9.0)), Scale::Linear).unwrap(),
+            (1.0, 2.0)
+        );
+    }
+
+    /// Renders `plot`, expects `expected` and checks that nothing was written.
+    fn assert_line_error(plot: &LinePlot, stem: &str, expected: &PlotError) {
+        let out = OutDir::new("bad");
+        assert_eq!(&plot.render(&out.0, stem).unwrap_err(), expected);
+        assert!(!out.0.exists(), "no output on invalid input");
+    }
+
+    #[test]
+    fn invalid_line_plots_are_errors() {
+        let good = || LinePlot {
+            title: "t".into(),
+            series: vec![Series::new("a", [(0.0, 1.0), (1.0, 2.0)])],
+            ..LinePlot::default()
+        };
+        let no_series = LinePlot {
+            series: vec![],
+            ..good()
+        };
+        assert_line_error(&no_series, "f", &PlotError::NoSeries { figure: "t".into() });
+
+        let mut empty = good();
+        empty.series.push(Series::new("b", []));
+        assert_line_error(&empty, "f", &PlotError::EmptySeries { series: "b".into() });
+
+        let mut nan = good();
+        nan.series[0].points[1].1 = f64::NAN;
+        let err = nan.render(&OutDir::new("nan").0, "f").unwrap_err();
+        assert!(
+            matches!(&err, PlotError::NonFinite { item, index: 1, x, y } if item == "a" && *x == 1.0 && y.is_nan()),
+            "{err:?}"
+        );
+
+        let mut marker = good();
+        marker.markers.push(Marker::new(f64::INFINITY, "push"));
+        let expected = PlotError::NonFinite {
+            item: "push".into(),
+            index: 0,
+            x: f64::INFINITY,
+            y: 0.0,
+        };
+        assert_line_error(&marker, "f", &expected);
+
+        let mut log = good();
+        log.y_scale = Scale::Log10;
+        log.series[0].points[0].1 = 0.0;
+        let expected = PlotError::NonPositiveOnLogAxis {
+            item: "a".into(),
+            index: 0,
+            y: 0.0,
+        };
+        assert_line_error(&log, "f", &expected);
+
+        let mut log_range = good();
+        log_range.y_scale = Scale::Log10;
+        log_range.y_range = Some((0.0, 1.0));
+        let expected = PlotError::InvalidRange {
+            axis: "y",
+            min: 0.0,
+            max: 1.0,
+        };
+        assert_line_error(&log_range, "f", &expected);
+
+        let mut reversed = good();
+        reversed.x_range = Some((2.0, 1.0));
+        let expected = PlotError::InvalidRange {
+            axis: "x",
+            min: 2.0,
+            max: 1.0,
+        };
+        assert_line_error(&reversed, "f", &expected);
+
+        let small = LinePlot {
+            size: (100, 100),
+            ..good()
+        };
+        let expected = PlotError::InvalidSize {
+            width: 100,
+            height: 100,
+        };
+        assert_line_error(&small, "f", &expected);
+
+        for stem in ["", ".", "..", "../f", "a/b"] {
+            let expected = PlotError::InvalidStem { stem: stem.into() };
+            assert_line_error(&good(), stem, &expected);
+        }
+    }
+
+    #[test]
+    fn invalid_trajectory_plots_are_errors() {
+        let out = OutDir::new("bad-trajectory");
+        let empty = TrajectoryPlot::default();
+        assert_eq!(
+            empty.render(&out.0, "f").unwrap_err(),
+            PlotError::NoSeries {
+                figure: String::new()
+            }
+        );
+        let desired_nan = TrajectoryPlot {
+            trajectories: vec![Trajectory::new("p", [(0.0, 0.0)], Some((0.0, f64::NAN)))],
+            ..TrajectoryPlot::default()
+        };
+        let err = desired_nan.render(&out.0, "f").unwrap_err();
+        assert!(
+            matches!(&err, PlotError::NonFinite { item, .. } if item == "p"),
+            "{err:?}"
+        );
+        assert!(!out.0.exists());
+    }
+
+    #[test]
+    fn unwritable_output_directory_is_an_io_error() {
+        let out = OutDir::new("io");
+        std::fs::create_dir_all(&out.0).unwrap();
+        let file = out.0.join("not-a-directory");
+        std::fs::write(&file, b"x").unwrap();
+        let err = joints_plot().render(&file.join("sub"), "f").unwrap_err();
+        assert!(
+            matches!(&err, PlotError::Io { path, .. } if *path == file.join("sub")),
+            "{err:?}"
+        );
+    }
 }
