@@ -10,10 +10,12 @@ pub mod feature;
 pub mod law;
 pub mod linalg;
 pub mod math;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod robot;
+pub mod scenario;
 pub mod sim;
 pub mod stack;
 pub mod target;
 pub mod task;
 pub mod visual_task;
-pub mod scenario;
