@@ -12,6 +12,7 @@ pub mod linalg;
 pub mod math;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod report;
 pub mod robot;
 pub mod scenario;
 pub mod sim;

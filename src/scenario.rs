@@ -102,7 +102,12 @@ pub struct PoseSpec {
 
 impl PoseSpec {
     fn to_isometry(self, field: &str) -> Result<Isometry3<f64>, ScenarioError> {
-        if !self.translation_m.iter().chain(&self.rpy_deg).all(|v| v.is_finite()) {
+        if !self
+            .translation_m
+            .iter()
+            .chain(&self.rpy_deg)
+            .all(|v| v.is_finite())
+        {
             return Err(invalid(field, "non-finite value"));
         }
         let [roll, pitch, yaw] = self.rpy_deg.map(f64::to_radians);
@@ -225,7 +230,7 @@ impl From<InteractionKind> for InteractionSource {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AvoidanceSpec {
-    /// `ρ` of MATH [M19], in (0, 1/2).
+    /// `ρ` of MATH \[M19\], in (0, 1/2).
     pub activation_ratio: f64,
     /// `κ` (s⁻¹), the projected-gradient gain.
     pub gain: f64,
@@ -285,7 +290,12 @@ pub enum RunKind {
 
 impl RunKind {
     /// The four runs, in the paper's order.
-    pub const ALL: [RunKind; 4] = [Self::Classical, Self::Stack, Self::StackGradient, Self::StackController];
+    pub const ALL: [RunKind; 4] = [
+        Self::Classical,
+        Self::Stack,
+        Self::StackGradient,
+        Self::StackController,
+    ];
 
     /// The run's name: `classical`, `stack`, `stack_gradient`, `stack_controller`.
     pub fn name(self) -> &'static str {
@@ -343,8 +353,13 @@ impl Scenario {
         let (chain, camera) = self.robot::<N>()?;
         let desired_joints = joints::<N>("desired.joints", &self.desired.joints)?;
         let start = joints::<N>("start.joints", &self.start.joints)?;
-        for (field, q) in [("start.joints", &start), ("desired.joints", &desired_joints)] {
-            if let Some(joint) = (0..N).find(|&i| !(chain.lower_limits()[i]..=chain.upper_limits()[i]).contains(&q[i])) {
+        for (field, q) in [
+            ("start.joints", &start),
+            ("desired.joints", &desired_joints),
+        ] {
+            if let Some(joint) = (0..N)
+                .find(|&i| !(chain.lower_limits()[i]..=chain.upper_limits()[i]).contains(&q[i]))
+            {
                 return Err(invalid(
                     field,
                     format!(
@@ -359,7 +374,10 @@ impl Scenario {
         let c = self.camera;
         let intrinsics = CameraIntrinsics::new(c.fx, c.fy, c.cx, c.cy, c.width, c.height)?;
         let target = RectangleTarget::new(self.target.width_m, self.target.height_m)?;
-        let desired_camera_from_target = self.desired.camera_from_target.to_isometry("desired.camera_from_target")?;
+        let desired_camera_from_target = self
+            .desired
+            .camera_from_target
+            .to_isometry("desired.camera_from_target")?;
         let scene = Scene::with_target_seen_from(
             chain,
             camera,
@@ -426,7 +444,9 @@ impl Scenario {
         experiment: &Experiment<N>,
         kind: RunKind,
     ) -> Result<Run<N>, ScenarioError> {
-        let desired_view = experiment.scene.view_from(&experiment.desired_camera_from_target)?;
+        let desired_view = experiment
+            .scene
+            .view_from(&experiment.desired_camera_from_target)?;
         let desired = desired_view.observation().map_err(SimError::from)?;
         let desired_depth = experiment.desired_camera_from_target.translation.z;
         let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(desired_depth);
@@ -439,7 +459,13 @@ impl Scenario {
                 self.tasks.classical_gain,
                 source,
             )?],
-            _ => paper_tasks(&desired, desired_depth, a_priori_depth, self.tasks.gains, source)?,
+            _ => paper_tasks(
+                &desired,
+                desired_depth,
+                a_priori_depth,
+                self.tasks.gains,
+                source,
+            )?,
         };
         let avoid = matches!(kind, RunKind::StackGradient | RunKind::StackController);
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
