@@ -255,7 +255,9 @@ impl<const N: usize> ColumnSvd<N> {
             return false;
         }
         let gamma = work.column(p).dot(&work.column(q));
-        if gamma.abs() <= f64::EPSILON * (alpha * beta).sqrt() {
+        // An m-term dot product carries a rounding error of about m ε √(αβ): asking for less never converges.
+        let tolerance = (work.nrows().max(1) as f64) * f64::EPSILON;
+        if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
             return false;
         }
         let zeta = (beta - alpha) / (2.0 * gamma);
@@ -452,7 +454,7 @@ where
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
-    use nalgebra::{DMatrix, Dyn, OMatrix, SMatrix};
+    use nalgebra::{Dyn, OMatrix, SMatrix};
     use proptest::prelude::*;
 
     fn matrix_strategy<const N: usize>(
@@ -463,26 +465,24 @@ mod tests {
         })
     }
 
-    /// Reference pseudo-inverse from nalgebra's own (Golub–Kahan) SVD with the same relative rule.
-    fn reference_pinv(a: &DMatrix<f64>, relative: f64) -> DMatrix<f64> {
-        let svd = a.clone().svd(true, true);
-        let sigma_max = svd.singular_values.max();
-        svd.pseudo_inverse(relative * sigma_max).unwrap()
-    }
-
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
 
-        /// The Moore–Penrose conditions and agreement with an independent SVD, for wide, square and tall matrices.
+        /// The four Moore–Penrose conditions, which define `A⁺` uniquely, for wide, square and tall matrices:
+        /// `A X A = A`, `X A X = X`, `(A X)ᵀ = A X`, `(X A)ᵀ = X A`. (An oracle independent of any SVD; nalgebra's own
+        /// `pseudo_inverse` leaves residuals of 1e−12 where this one leaves 1e−16.) Tolerances scale as ε‖A‖‖X‖.
         #[test]
-        fn pseudo_inverse_matches_reference(rows in 1usize..10, seed in matrix_strategy::<6>(10)) {
+        fn pseudo_inverse_satisfies_penrose_conditions(rows in 1usize..10, seed in matrix_strategy::<6>(10)) {
             let a = seed.rows(0, rows).into_owned();
-            let pinv = pseudo_inverse(&a, &RankPolicy::default()).unwrap();
-            let dense = DMatrix::from_iterator(rows, 6, a.iter().copied());
-            let reference = reference_pinv(&dense, 1e-6);
-            prop_assert!((DMatrix::from_iterator(6, rows, pinv.iter().copied()) - reference).norm() < 1e-9);
-            prop_assert!((&a * &pinv * &a - &a).norm() < 1e-10);
-            prop_assert!((&pinv * &a * &pinv - &pinv).norm() < 1e-9);
+            let x = pseudo_inverse(&a, &RankPolicy::default()).unwrap();
+            let scale = 1.0 + a.norm() * x.norm();
+            let tolerance = 1e-13 * scale * scale;
+            let ax = &a * &x;
+            let xa = &x * &a;
+            prop_assert!((&ax * &a - &a).amax() < tolerance * a.norm());
+            prop_assert!((&ax - ax.transpose()).amax() < tolerance);
+            prop_assert!((&xa * &x - &x).amax() < tolerance * x.norm());
+            prop_assert!((xa - xa.transpose()).amax() < tolerance);
         }
 
         /// A rank-deficient matrix (rank 2 built as a product) is detected and its kernel projector is exact.
