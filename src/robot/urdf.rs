@@ -95,13 +95,13 @@ impl<const N: usize> SerialChain<N> {
                     let (lo, hi) = joint_limits(urdf_joint, kind)?;
                     lower.push(lo);
                     upper.push(hi);
-                    joints.push(Joint {
-                        name: urdf_joint.name.clone(),
+                    joints.push(Joint::new(
+                        urdf_joint.name.clone(),
                         kind,
-                        child_link: urdf_joint.child.link.clone(),
+                        urdf_joint.child.link.clone(),
                         origin,
-                        axis: joint_axis(urdf_joint)?,
-                    });
+                        joint_axis(urdf_joint)?,
+                    ));
                     segment_from_link = Isometry3::identity();
                 }
             }
