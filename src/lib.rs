@@ -2,7 +2,21 @@
 #![warn(missing_docs)]
 #![deny(unsafe_code)]
 
+pub mod avoidance;
 pub mod camera;
+pub mod continuity;
+pub mod controller;
+pub mod feature;
+pub mod law;
+pub mod linalg;
 pub mod math;
+#[cfg(feature = "plot")]
+pub mod plot;
+pub mod report;
 pub mod robot;
+pub mod scenario;
+pub mod sim;
+pub mod stack;
 pub mod target;
+pub mod task;
+pub mod visual_task;

@@ -1,0 +1,235 @@
+//! The joint-limit cost of Chaumette & Marchand (MATH §5, \[M19\]–\[M21\], (F37)–(F38)).
+//!
+//! Per joint `i`, with range `Δq_i = q_i^max − q_i^min` and activation ratio `ρ ∈ (0, 1/2)` (default 0.1):
+//!
+//! ```text
+//! [M19]  q̃_i^min = q_i^min + ρ Δq_i ,   q̃_i^max = q_i^max − ρ Δq_i          (activation thresholds)
+//! [M20]  h(q) = ½ Σ_i δ_i² / Δq_i ,   δ_i = q_i − q̃_i^max  above,  q_i − q̃_i^min  below,  0 inside
+//! [M21]  ∇h = ( δ_1/Δq_1, …, δ_N/Δq_N )ᵀ
+//! ```
+//!
+//! `h` is zero, with zero gradient, inside the acceptable box `[q̃^min, q̃^max]`, and continuously differentiable
+//! everywhere. Units: `δ_i` and `Δq_i` are in the joint's unit (m or rad), so `h` is in m or rad per joint term and `∇h`
+//! is dimensionless; the avoidance gain `κ` carries the unit 1/s.
+
+use super::{Cost, CostError};
+use crate::math::{all_finite, JointVector};
+
+/// Joint limits and the cost \[M20\] that keeps a configuration away from them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointLimits<const N: usize> {
+    lower: JointVector<N>,
+    upper: JointVector<N>,
+    rho: f64,
+}
+
+impl<const N: usize> JointLimits<N> {
+    /// The activation ratio of the paper and of ViSP's 2005 Afma6 model (MATH §5).
+    pub const DEFAULT_ACTIVATION_RATIO: f64 = 0.1;
+
+    /// Limits `lower < upper` (m or rad per joint) with activation ratio `rho ∈ (0, 1/2)`.
+    ///
+    /// # Errors
+    /// [`CostError::InvalidLimits`] for a non-finite or unordered pair, [`CostError::InvalidActivationRatio`].
+    pub fn new(lower: JointVector<N>, upper: JointVector<N>, rho: f64) -> Result<Self, CostError> {
+        if !(rho.is_finite() && rho > 0.0 && rho < 0.5) {
+            return Err(CostError::InvalidActivationRatio { rho });
+        }
+        for joint in 0..N {
+            let (lo, hi) = (lower[joint], upper[joint]);
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(CostError::InvalidLimits {
+                    joint,
+                    lower: lo,
+                    upper: hi,
+                });
+            }
+        }
+        Ok(Self { lower, upper, rho })
+    }
+
+    /// Lower limits `q^min`.
+    pub fn lower(&self) -> &JointVector<N> {
+        &self.lower
+    }
+
+    /// Upper limits `q^max`.
+    pub fn upper(&self) -> &JointVector<N> {
+        &self.upper
+    }
+
+    /// The activation ratio `ρ`.
+    pub fn activation_ratio(&self) -> f64 {
+        self.rho
+    }
+
+    /// The range `Δq_i = q_i^max − q_i^min` of joint `i`.
+    fn range(&self, joint: usize) -> f64 {
+        self.upper[joint] - self.lower[joint]
+    }
+
+    /// The activation thresholds `(q̃^min, q̃^max)` of \[M19\].
+    pub fn activation_thresholds(&self) -> (JointVector<N>, JointVector<N>) {
+        let band = (self.upper - self.lower) * self.rho;
+        (self.lower + band, self.upper - band)
+    }
+
+    /// `δ_i` of \[M20\]: how far joint `i` has gone into its activation band (signed, 0 inside the acceptable box).
+    fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
+        let band = self.rho * self.range(joint);
+        let (low, high) = (self.lower[joint] + band, self.upper[joint] - band);
+        if q[joint] > high {
+            q[joint] - high
+        } else if q[joint] < low {
+            q[joint] - low
+        } else {
+            0.0
+        }
+    }
+
+    /// The value of `h` when one joint, `joint`, has gone half-way through its activation band and every other joint is
+    /// in the acceptable box: `½ (ρΔq/2)² / Δq = ρ² Δq / 8`. The stack controller's default `h_max` is the smallest of
+    /// these over the joints (MATH D6).
+    pub fn half_band_cost(&self, joint: usize) -> f64 {
+        self.rho * self.rho * self.range(joint) / 8.0
+    }
+
+    /// The default removal threshold `h_max` of MATH D6: the smallest [`Self::half_band_cost`] over the joints.
+    pub fn default_removal_threshold(&self) -> f64 {
+        (0..N)
+            .map(|joint| self.half_band_cost(joint))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The first joint outside its hard limits `[q^min, q^max]` (MATH D11), or `None`.
+    pub fn violated_joint(&self, q: &JointVector<N>) -> Option<usize> {
+        (0..N).find(|&i| !(self.lower[i] <= q[i] && q[i] <= self.upper[i]))
+    }
+
+    /// The configuration normalised per joint to `(q − q^min)/Δq`: 0 at the lower limit, 1 at the upper (the paper's
+    /// Fig. 5–7 axes).
+    pub fn normalized(&self, q: &JointVector<N>) -> JointVector<N> {
+        JointVector::from_fn(|i, _| (q[i] - self.lower[i]) / self.range(i))
+    }
+
+    /// The smallest distance to a hard limit over the joints, divided by the joint's range (negative outside).
+    pub fn normalized_margin(&self, q: &JointVector<N>) -> f64 {
+        self.normalized(q)
+            .iter()
+            .map(|&s| s.min(1.0 - s))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+impl<const N: usize> Cost<N> for JointLimits<N> {
+    /// \[M20\].
+    fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
+        if !all_finite(q) {
+            return Err(CostError::NonFiniteConfiguration);
+        }
+        Ok((0..N)
+            .map(|i| 0.5 * self.penetration(q, i).powi(2) / self.range(i))
+            .sum())
+    }
+
+    /// \[M20\] and \[M21\].
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<N>,
+        gradient: &mut JointVector<N>,
+    ) -> Result<f64, CostError> {
+        if !all_finite(q) {
+            return Err(CostError::NonFiniteConfiguration);
+        }
+        let mut value = 0.0;
+        for i in 0..N {
+            let delta = self.penetration(q, i);
+            gradient[i] = delta / self.range(i);
+            value += 0.5 * delta * gradient[i];
+        }
+        Ok(value)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::avoidance::test_support::gradient_error;
+    use proptest::prelude::*;
+
+    fn limits() -> JointLimits<6> {
+        JointLimits::new(
+            JointVector::<6>::from_row_slice(&[
+                -0.6501, -0.6001, -0.5001, -2.7301, -0.1001, -1.5901,
+            ]),
+            JointVector::<6>::from_row_slice(&[0.7001, 0.5201, 0.4601, 2.7301, 2.4801, 1.5901]),
+            0.1,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn zero_inside_the_acceptable_box() {
+        let limits = limits();
+        let (low, high) = limits.activation_thresholds();
+        for q in [low, high, (low + high) * 0.5] {
+            let mut gradient = JointVector::repeat(1.0);
+            assert_eq!(limits.value_and_gradient(&q, &mut gradient).unwrap(), 0.0);
+            assert_eq!(gradient, JointVector::<6>::zeros());
+        }
+    }
+
+    #[test]
+    fn hand_computed_value() {
+        // One prismatic joint with range 1.35 m, 0.05 m beyond its upper threshold:
+        // h = ½ · 0.05² / 1.35.
+        let limits = limits();
+        let (_, high) = limits.activation_thresholds();
+        let mut q = (limits.lower() + limits.upper()) * 0.5;
+        q[0] = high[0] + 0.05;
+        assert!((limits.value(&q).unwrap() - 0.5 * 0.05 * 0.05 / 1.3502).abs() < 1e-15);
+        assert!((limits.half_band_cost(0) - 0.01 * 1.3502 / 8.0).abs() < 1e-15);
+        assert_eq!(limits.violated_joint(&q), None);
+        q[3] = 2.75;
+        assert_eq!(limits.violated_joint(&q), Some(3));
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(128))]
+        /// The gradient matches central differences everywhere (the cost is C¹), including across the limits.
+        #[test]
+        fn gradient_matches_finite_differences(s in proptest::collection::vec(-0.2..1.2f64, 6)) {
+            let limits = limits();
+            let q = JointVector::<6>::from_fn(|i, _| limits.lower()[i] + s[i] * (limits.upper()[i] - limits.lower()[i]));
+            prop_assert!(gradient_error(&limits, &q, 1e-6) < 1e-8);
+        }
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        let (lo, hi) = (
+            JointVector::<2>::new(0.0, 0.0),
+            JointVector::<2>::new(1.0, 1.0),
+        );
+        for rho in [0.0, 0.5, -0.1, f64::NAN] {
+            assert!(matches!(
+                JointLimits::new(lo, hi, rho),
+                Err(CostError::InvalidActivationRatio { .. })
+            ));
+        }
+        assert_eq!(
+            JointLimits::new(lo, JointVector::<2>::new(1.0, -1.0), 0.1),
+            Err(CostError::InvalidLimits {
+                joint: 1,
+                lower: 0.0,
+                upper: -1.0
+            })
+        );
+        assert!(JointLimits::new(lo, JointVector::<2>::new(f64::INFINITY, 1.0), 0.1).is_err());
+        let limits = JointLimits::new(lo, hi, 0.1).unwrap();
+        assert_eq!(
+            limits.value(&JointVector::<2>::new(f64::NAN, 0.0)),
+            Err(CostError::NonFiniteConfiguration)
+        );
+    }
+}

@@ -1,0 +1,232 @@
+//! Centroid and centred moments of a point set with their exact interaction rows, MATH \[M30\], \[M34\]–\[M35\] (F33).
+
+use super::{point_interaction, FeatureError, InteractionRow, RELATIVE_TOLERANCE};
+use crate::camera::ImagePoint;
+
+/// Highest moment order computed.
+const MAX_ORDER: usize = 3;
+
+/// The centroid and the centred moments `μ_ij` (`i + j ≤ 3`) of a set of N image points, with their exact
+/// interaction rows, computed once per point set by [`super::Observation::new`] and shared by every feature.
+///
+/// Definitions (MATH \[M30\], \[M34\], (F30), (F33)), **without** a `1/N` factor on the moments:
+///
+/// ```text
+/// x_g = (1/N) Σ x_k,   y_g = (1/N) Σ y_k,   μ_ij = Σ_k (x_k − x_g)^i (y_k − y_g)^j   (μ_00 = N, μ_10 = μ_01 = 0)
+/// ```
+///
+/// Interaction rows by the chain rule \[M29\] over the point rows \[M28\]: `L_{x_g} = (1/N) Σ L_{x_k}` (exact \[M31\]) and
+/// \[M35\], summed as
+/// `L_{μ_ij} = i (Σ_k Δx^{i−1} Δy^j L_{x_k} − μ_{i−1,j} L_{x_g}) + j (Σ_k Δx^i Δy^{j−1} L_{y_k} − μ_{i,j−1} L_{y_g})`
+/// with `Δx = x_k − x_g`, `Δy = y_k − y_g`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moments {
+    n: usize,
+    xg: f64,
+    yg: f64,
+    l_xg: InteractionRow,
+    l_yg: InteractionRow,
+    mu: [[f64; MAX_ORDER + 1]; MAX_ORDER + 1],
+    l_mu: [[InteractionRow; MAX_ORDER + 1]; MAX_ORDER + 1],
+    /// `Σ (x_k² + y_k²)`, scale of the relative test on `a`.
+    scale: f64,
+}
+
+impl Moments {
+    /// Moments of validated, non-empty `points`, with `inverse_depth(p)` the (positive, finite) `1/Z` of each.
+    pub(super) fn compute(
+        points: &[ImagePoint],
+        inverse_depth: impl Fn(&ImagePoint) -> f64,
+    ) -> Self {
+        let n = points.len();
+        let inv_n = 1.0 / n as f64;
+        let zero = InteractionRow::zeros();
+        let (mut sx, mut sy, mut scale) = (0.0, 0.0, 0.0);
+        let (mut l_xg, mut l_yg) = (zero, zero);
+        for p in points {
+            let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(p));
+            sx += p.x;
+            sy += p.y;
+            scale += p.x * p.x + p.y * p.y;
+            l_xg += lx;
+            l_yg += ly;
+        }
+        let (xg, yg) = (sx * inv_n, sy * inv_n);
+        l_xg *= inv_n;
+        l_yg *= inv_n;
+
+        let mut mu = [[0.0; MAX_ORDER + 1]; MAX_ORDER + 1];
+        // sum_x[p][q] = Σ_k Δx^p Δy^q L_{x_k}, sum_y likewise with L_{y_k}, p + q ≤ 2.
+        let mut sum_x = [[zero; MAX_ORDER]; MAX_ORDER];
+        let mut sum_y = [[zero; MAX_ORDER]; MAX_ORDER];
+        for p in points {
+            let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(p));
+            let (dx, dy) = (p.x - xg, p.y - yg);
+            let px = [1.0, dx, dx * dx, dx * dx * dx];
+            let py = [1.0, dy, dy * dy, dy * dy * dy];
+            for i in 0..=MAX_ORDER {
+                for j in 0..=MAX_ORDER - i {
+                    let w = px[i] * py[j];
+                    mu[i][j] += w;
+                    if i + j < MAX_ORDER {
+                        sum_x[i][j] += lx * w;
+                        sum_y[i][j] += ly * w;
+                    }
+                }
+            }
+        }
+        // Exact by definition; the sums above only carry rounding noise.
+        mu[0][0] = n as f64;
+        mu[1][0] = 0.0;
+        mu[0][1] = 0.0;
+
+        let mut l_mu = [[zero; MAX_ORDER + 1]; MAX_ORDER + 1];
+        for i in 0..=MAX_ORDER {
+            for j in 0..=MAX_ORDER - i {
+                if i + j < 2 {
+                    continue; // μ_00, μ_10, μ_01 are constants.
+                }
+                let mut row = zero;
+                if i > 0 {
+                    row += (sum_x[i - 1][j] - l_xg * mu[i - 1][j]) * i as f64;
+                }
+                if j > 0 {
+                    row += (sum_y[i][j - 1] - l_yg * mu[i][j - 1]) * j as f64;
+                }
+                l_mu[i][j] = row;
+            }
+        }
+        Self {
+            n,
+            xg,
+            yg,
+            l_xg,
+            l_yg,
+            mu,
+            l_mu,
+            scale,
+        }
+    }
+
+    /// `true` when every moment and row is finite (false only on overflow of extreme coordinates).
+    pub(super) fn is_finite(&self) -> bool {
+        let rows = [&self.l_xg, &self.l_yg]
+            .into_iter()
+            .chain(self.l_mu.iter().flatten());
+        [self.xg, self.yg, self.scale]
+            .iter()
+            .chain(self.mu.iter().flatten())
+            .all(|v| v.is_finite())
+            && rows.into_iter().all(crate::math::all_finite)
+    }
+
+    /// Number of points N.
+    pub fn count(&self) -> usize {
+        self.n
+    }
+
+    /// Centroid abscissa `x_g` \[M30\].
+    pub fn xg(&self) -> f64 {
+        self.xg
+    }
+
+    /// Centroid ordinate `y_g` \[M30\].
+    pub fn yg(&self) -> f64 {
+        self.yg
+    }
+
+    /// Exact interaction row of `x_g`, `(1/N) Σ L_{x_k}` (\[M29\], equal to \[M31\] with the plane model).
+    pub fn interaction_xg(&self) -> &InteractionRow {
+        &self.l_xg
+    }
+
+    /// Exact interaction row of `y_g`, `(1/N) Σ L_{y_k}` (\[M29\], equal to \[M31\] with the plane model).
+    pub fn interaction_yg(&self) -> &InteractionRow {
+        &self.l_yg
+    }
+
+    /// Centred moment `μ_ij` \[M34\], or `None` when `i + j > 3`.
+    pub fn mu(&self, i: usize, j: usize) -> Option<f64> {
+        (i + j <= MAX_ORDER).then(|| self.mu[i][j])
+    }
+
+    /// Exact interaction row of `μ_ij` \[M35\], or `None` when `i + j > 3`.
+    pub fn interaction_mu(&self, i: usize, j: usize) -> Option<&InteractionRow> {
+        (i + j <= MAX_ORDER).then(|| &self.l_mu[i][j])
+    }
+
+    /// The second-order size `a = μ20 + μ02` \[M37\] (`= I3` of \[M40\]) and its row `L_{μ20} + L_{μ02}`.
+    ///
+    /// # Errors
+    /// [`FeatureError::DegenerateArea`] when `a ≤ RELATIVE_TOLERANCE · Σ (x_k² + y_k²)` (the points coincide).
+    pub fn size(&self) -> Result<(f64, InteractionRow), FeatureError> {
+        let a = self.mu[2][0] + self.mu[0][2];
+        if a <= RELATIVE_TOLERANCE * self.scale {
+            return Err(FeatureError::DegenerateArea {
+                a,
+                scale: self.scale,
+            });
+        }
+        Ok((a, self.l_mu[2][0] + self.l_mu[0][2]))
+    }
+
+    /// Second-order terms of \[M40\]: `c1 = μ20 − μ02`, `s1 = 2 μ11`, `I1 = c1² + s1²`, `I3 = a` and their rows.
+    ///
+    /// # Errors
+    /// [`FeatureError::DegenerateArea`] as [`Moments::size`].
+    pub(super) fn second_order_terms(&self) -> Result<Orientation, FeatureError> {
+        let (i3, l_i3) = self.size()?;
+        let c1 = self.mu[2][0] - self.mu[0][2];
+        let s1 = 2.0 * self.mu[1][1];
+        let l_c1 = self.l_mu[2][0] - self.l_mu[0][2];
+        let l_s1 = self.l_mu[1][1] * 2.0;
+        Ok(Orientation {
+            c1,
+            s1,
+            i1: c1 * c1 + s1 * s1,
+            i3,
+            l_c1,
+            l_s1,
+            l_i1: l_c1 * (2.0 * c1) + l_s1 * (2.0 * s1),
+            l_i3,
+        })
+    }
+
+    /// As [`Moments::second_order_terms`], for the features that divide by `I1` (orientation, paper's `P_x, P_y`).
+    ///
+    /// # Errors
+    /// [`FeatureError::DegenerateArea`]; [`FeatureError::IsotropicMoments`] when `I1 ≤ RELATIVE_TOLERANCE · I3²`
+    /// (D9: a square seen head-on).
+    pub(super) fn orientation_terms(&self) -> Result<Orientation, FeatureError> {
+        let o = self.second_order_terms()?;
+        if o.i1 <= RELATIVE_TOLERANCE * o.i3 * o.i3 {
+            return Err(FeatureError::IsotropicMoments { i1: o.i1, i3: o.i3 });
+        }
+        Ok(o)
+    }
+
+    /// Third-order terms of \[M40\]: `c2 = μ03 − 3 μ21`, `s2 = μ30 − 3 μ12` and their rows.
+    pub(super) fn third_order_terms(&self) -> (f64, f64, InteractionRow, InteractionRow) {
+        let m = &self.mu;
+        let l = &self.l_mu;
+        (
+            m[0][3] - 3.0 * m[2][1],
+            m[3][0] - 3.0 * m[1][2],
+            l[0][3] - l[2][1] * 3.0,
+            l[3][0] - l[1][2] * 3.0,
+        )
+    }
+}
+
+/// Second-order terms shared by the orientation and the invariants (\[M40\]–\[M41\]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Orientation {
+    pub c1: f64,
+    pub s1: f64,
+    pub i1: f64,
+    pub i3: f64,
+    pub l_c1: InteractionRow,
+    pub l_s1: InteractionRow,
+    pub l_i1: InteractionRow,
+    pub l_i3: InteractionRow,
+}

@@ -1,0 +1,302 @@
+//! The complete control law: task stack, projected-gradient avoidance and continuity (MATH \[M18\], (F19), D1).
+//!
+//! ```text
+//! u(t)  = q̇_n(t) − κ P^A_n ∇h(q)                                   (stack [M14] + avoidance [M18])
+//! q̇(t) = u(t) + e^{−μ (t−τ)} ( q̇(τ⁻) − u(τ) )                     (transition over the full law, D1)
+//! ```
+//!
+//! [`control_step`] evaluates one step from evaluated tasks ([`crate::task::TaskValue`]), a stack order, an optional
+//! cost ([`crate::avoidance::Cost`]) and the time. It is a free function on a model ([`ControlLaw`], immutable) and a
+//! workspace ([`ControlWorkspace`], allocated once): it allocates nothing and returns a [`ControlOutput`] that borrows
+//! the workspace. The workspace remembers the last velocity it returned; when the caller says the stack changed at this
+//! step, that velocity becomes `q̇(τ⁻)` and the new law is blended from it, so `q̇(τ⁺) = q̇(τ⁻)` exactly. A fresh
+//! workspace starts at rest: its first step is a switch from `q̇ = 0` (ViSP's smooth start).
+//!
+//! ```
+//! use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
+//! use servostack::task::{TaskValue, TaskJacobian};
+//! use servostack::avoidance::{Cost, JointLimits};
+//! use nalgebra::{DVector, Vector3};
+//!
+//! let task = TaskValue::<3>::from_parts("x", DVector::from_vec(vec![0.2]), TaskJacobian::from_row_slice(&[1.0, 0.0, 0.0]), 1.0)?;
+//! let tasks = [task];
+//! let limits = JointLimits::new(Vector3::repeat(-1.0), Vector3::repeat(1.0), 0.1)?;
+//! let law = ControlLaw::new(10.0, 0.5)?; // μ = 10 s⁻¹, κ = 0.5 s⁻¹
+//! let mut workspace = ControlWorkspace::new(&tasks);
+//! let q = Vector3::new(0.0, 0.95, 0.0); // joint 1 deep in its activation band
+//! let first = control_step(&law, &mut workspace, &tasks, &[0], Some(&limits as &dyn Cost<3>), &q, 0.0, StackChange::Changed)?;
+//! assert_eq!(first.velocity().norm(), 0.0); // smooth start from rest
+//! let later = control_step(&law, &mut workspace, &tasks, &[0], Some(&limits as &dyn Cost<3>), &q, 1.0, StackChange::Unchanged)?;
+//! assert!(later.law()[0] < 0.0 && later.law()[1] < 0.0); // task drives joint 0, avoidance pulls joint 1 back
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use crate::avoidance::{Cost, CostError};
+use crate::continuity::Transition;
+use crate::math::{all_finite, JointVector};
+use crate::stack::{solve_stack, StackError, StackParameters, StackSolution, StackWorkspace};
+use crate::task::TaskValue;
+
+/// Errors of the control law.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LawError {
+    /// The transition gain `μ` must be finite and strictly positive (s⁻¹).
+    #[error("transition gain μ = {mu} must be finite and > 0")]
+    InvalidTransitionGain {
+        /// The gain given.
+        mu: f64,
+    },
+    /// The avoidance gain `κ` must be finite and non-negative (s⁻¹).
+    #[error("avoidance gain κ = {kappa} must be finite and ≥ 0")]
+    InvalidAvoidanceGain {
+        /// The gain given.
+        kappa: f64,
+    },
+    /// The time is not finite, or earlier than the last stack modification.
+    #[error(
+        "time t = {time} s is not finite or precedes the last stack change τ = {switch_time} s"
+    )]
+    InvalidTime {
+        /// The time given.
+        time: f64,
+        /// The time of the last stack change.
+        switch_time: f64,
+    },
+    /// The joint configuration holds a NaN or an infinity.
+    #[error("joint configuration holds a non-finite value")]
+    NonFiniteConfiguration,
+    /// The stack solve failed.
+    #[error(transparent)]
+    Stack(#[from] StackError),
+    /// The avoidance cost failed.
+    #[error(transparent)]
+    Cost(#[from] CostError),
+    /// The law produced a non-finite velocity (for example, a cost gradient overflowed).
+    #[error("the control law produced a non-finite velocity")]
+    NonFiniteVelocity,
+}
+
+/// The model of the control law: how the stack is inverted and the gains `μ` and `κ`. Immutable after construction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlLaw {
+    stack: StackParameters,
+    transition_gain: f64,
+    avoidance_gain: f64,
+}
+
+impl ControlLaw {
+    /// The ratio `μ / max_i λ_i` of the paper (MATH §3, D1).
+    pub const TRANSITION_TO_TASK_GAIN_RATIO: f64 = 10.0;
+
+    /// A law with transition gain `μ` (s⁻¹, > 0) and avoidance gain `κ` (s⁻¹, ≥ 0; 0 disables avoidance), and the
+    /// default stack parameters.
+    ///
+    /// # Errors
+    /// [`LawError::InvalidTransitionGain`], [`LawError::InvalidAvoidanceGain`].
+    pub fn new(transition_gain: f64, avoidance_gain: f64) -> Result<Self, LawError> {
+        Self::with_stack_parameters(StackParameters::default(), transition_gain, avoidance_gain)
+    }
+
+    /// A law with `μ = 10 · max_i λ_i` over `tasks` (MATH D1) and avoidance gain `κ`.
+    ///
+    /// # Errors
+    /// As [`ControlLaw::new`]; an empty task list gives [`LawError::InvalidTransitionGain`] with `μ = 0`.
+    pub fn with_default_transition<const N: usize>(
+        tasks: &[TaskValue<N>],
+        avoidance_gain: f64,
+    ) -> Result<Self, LawError> {
+        let max_gain = tasks.iter().map(TaskValue::gain).fold(0.0, f64::max);
+        Self::new(
+            Self::TRANSITION_TO_TASK_GAIN_RATIO * max_gain,
+            avoidance_gain,
+        )
+    }
+
+    /// A law with explicit stack parameters.
+    ///
+    /// # Errors
+    /// As [`ControlLaw::new`], plus invalid stack parameters.
+    pub fn with_stack_parameters(
+        stack: StackParameters,
+        transition_gain: f64,
+        avoidance_gain: f64,
+    ) -> Result<Self, LawError> {
+        stack.validate()?;
+        if !(transition_gain.is_finite() && transition_gain > 0.0) {
+            return Err(LawError::InvalidTransitionGain {
+                mu: transition_gain,
+            });
+        }
+        if !(avoidance_gain.is_finite() && avoidance_gain >= 0.0) {
+            return Err(LawError::InvalidAvoidanceGain {
+                kappa: avoidance_gain,
+            });
+        }
+        Ok(Self {
+            stack,
+            transition_gain,
+            avoidance_gain,
+        })
+    }
+
+    /// The stack parameters.
+    pub fn stack_parameters(&self) -> &StackParameters {
+        &self.stack
+    }
+
+    /// `μ` (s⁻¹).
+    pub fn transition_gain(&self) -> f64 {
+        self.transition_gain
+    }
+
+    /// `κ` (s⁻¹).
+    pub fn avoidance_gain(&self) -> f64 {
+        self.avoidance_gain
+    }
+}
+
+/// Whether the stack order given to [`control_step`] differs from the previous step's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StackChange {
+    /// Same stack as the previous step: the transition keeps decaying.
+    Unchanged,
+    /// A task was pushed or removed at this step: `τ ← t` and the transition restarts from the last velocity sent.
+    Changed,
+}
+
+/// The result of one control step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlOutput<const N: usize> {
+    velocity: JointVector<N>,
+    law: JointVector<N>,
+    gradient: JointVector<N>,
+    cost: f64,
+    decay: f64,
+}
+
+impl<const N: usize> ControlOutput<N> {
+    /// The joint velocity to send, `q̇(t)` (D1): finite by construction.
+    pub fn velocity(&self) -> &JointVector<N> {
+        &self.velocity
+    }
+
+    /// The law without the transition term, `u(t) = q̇_n − κ P^A_n ∇h`.
+    pub fn law(&self) -> &JointVector<N> {
+        &self.law
+    }
+
+    /// The cost gradient `∇h(q)` (zero without a cost).
+    pub fn gradient(&self) -> &JointVector<N> {
+        &self.gradient
+    }
+
+    /// The cost `h(q)` (zero without a cost).
+    pub fn cost(&self) -> f64 {
+        self.cost
+    }
+
+    /// The transition factor `e^{−μ(t−τ)}` at this step.
+    pub fn decay(&self) -> f64 {
+        self.decay
+    }
+}
+
+/// Preallocated storage and memory (`q̇(τ⁻)`, `τ`, `u(τ)`) of the control law.
+#[derive(Debug, Clone)]
+pub struct ControlWorkspace<const N: usize> {
+    stack: StackWorkspace<N>,
+    transition: Transition<N>,
+    output: ControlOutput<N>,
+}
+
+impl<const N: usize> ControlWorkspace<N> {
+    /// A workspace for stacks of `tasks`, at rest (`q̇ = 0`).
+    pub fn new(tasks: &[TaskValue<N>]) -> Self {
+        Self {
+            stack: StackWorkspace::new(tasks),
+            transition: Transition::default(),
+            output: ControlOutput {
+                velocity: JointVector::zeros(),
+                law: JointVector::zeros(),
+                gradient: JointVector::zeros(),
+                cost: 0.0,
+                decay: 0.0,
+            },
+        }
+    }
+
+    /// The stack solution of the last step (`q̇_n`, `P^A_n`, per-level diagnostics).
+    pub fn stack_solution(&self) -> &StackSolution<N> {
+        self.stack.solution()
+    }
+
+    /// The transition state (`τ`, `q̇(τ⁻)`).
+    pub fn transition(&self) -> &Transition<N> {
+        &self.transition
+    }
+
+    /// The output of the last step; its velocity is the `q̇(τ⁻)` of the next stack change.
+    pub fn last_output(&self) -> &ControlOutput<N> {
+        &self.output
+    }
+
+    /// Forgets the past: the next change starts from `velocity` (use `zeros` to start at rest).
+    pub fn reset(&mut self, velocity: &JointVector<N>) {
+        self.transition = Transition::default();
+        self.output.velocity.copy_from(velocity);
+    }
+}
+
+/// One step of the control law D1/\[M18\] at time `time` (s) for the configuration `q`, the evaluated `tasks` stacked in
+/// `order` (highest priority first) and an optional avoidance `cost`.
+///
+/// # Errors
+/// Non-finite `q` or time, a time before the last change `τ` (a fresh workspace has `τ = 0`), stack or cost failures,
+/// a non-finite result. On error the workspace keeps its transition and previous output (the next change still starts
+/// from the last velocity actually returned).
+#[allow(clippy::too_many_arguments)]
+pub fn control_step<'w, const N: usize>(
+    law: &ControlLaw,
+    workspace: &'w mut ControlWorkspace<N>,
+    tasks: &[TaskValue<N>],
+    order: &[usize],
+    cost: Option<&dyn Cost<N>>,
+    q: &JointVector<N>,
+    time: f64,
+    change: StackChange,
+) -> Result<&'w ControlOutput<N>, LawError> {
+    if !all_finite(q) {
+        return Err(LawError::NonFiniteConfiguration);
+    }
+    let switch_time = workspace.transition.switch_time();
+    if !time.is_finite() || time < switch_time {
+        return Err(LawError::InvalidTime { time, switch_time });
+    }
+    let solution = solve_stack(&law.stack, &mut workspace.stack, tasks, order)?;
+    let mut gradient = JointVector::zeros();
+    let cost_value = match cost {
+        Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
+        None => 0.0,
+    };
+    // u = q̇_n − κ P^A_n ∇h
+    let mut law_velocity = *solution.velocity();
+    law_velocity.gemv(-law.avoidance_gain, solution.projector(), &gradient, 1.0);
+    let mut transition = workspace.transition;
+    if change == StackChange::Changed {
+        transition.switch(time, &workspace.output.velocity, &law_velocity);
+    }
+    let mut velocity = JointVector::zeros();
+    transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
+    if !all_finite(&velocity) || !cost_value.is_finite() {
+        return Err(LawError::NonFiniteVelocity);
+    }
+    workspace.transition = transition;
+    let output = &mut workspace.output;
+    output.velocity = velocity;
+    output.law = law_velocity;
+    output.gradient = gradient;
+    output.cost = cost_value;
+    output.decay = workspace.transition.decay(law.transition_gain, time);
+    Ok(output)
+}

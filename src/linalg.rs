@@ -1,0 +1,571 @@
+//! Pseudo-inverses with an explicit rank policy, damped least squares, and projector helpers (MATH §2.1, D2).
+//!
+//! Every level of the task stack needs, for its limited Jacobian `J̃ = J P` (`m × N`, `m` may exceed `N`), the
+//! least-squares velocity `J̃⁺ r` and the projector onto its row space `J̃⁺ J̃` (MATH \[M8\]). Both come from one
+//! singular value decomposition `J̃ = U Σ Vᵀ`:
+//!
+//! ```text
+//! J̃⁺ r   = Σ_{k kept} v_k (u_kᵀ r) / σ_k                (truncated, MATH §2.1.1)
+//! J̃^{#δ} r = Σ_k v_k σ_k (u_kᵀ r) / (σ_k² + δ²)         (damped least squares, MATH §2.1.2)
+//! J̃⁺ J̃   = Σ_{k kept} v_k v_kᵀ                          (always truncated and exact, D2)
+//! ```
+//!
+//! The decomposition is a **one-sided Jacobi SVD** (Hestenes): plane rotations applied to the columns of a working
+//! copy `W` of the matrix until its columns are mutually orthogonal. Then `W = A V = [σ_1 u_1, …, σ_N u_N]`. It runs on
+//! the caller's storage plus a fixed `N × N` matrix, allocates nothing, works for any row count (including `m > N`),
+//! and is accurate to working precision for the small singular values that decide ranks (no normal equations, whose
+//! squared condition number would blur them).
+//!
+//! **Rank policy** ([`RankPolicy`], D2): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
+//! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
+//! For a limited Jacobian `J̃_i = J_i P` the stack measures `σ_max` on the task's own scale, `max(σ_max(J̃_i), ‖J_i‖_F)`
+//! ([`ColumnSvd::decompose_with_scale`]).
+
+use crate::math::{all_finite, JointMatrix, JointVector};
+use nalgebra::{Const, Dim, Matrix, RawStorage, StorageMut, Vector};
+
+/// Errors of the linear-algebra helpers.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinalgError {
+    /// A rank threshold is negative, not finite, or the relative threshold is not below 1.
+    #[error("invalid rank policy: relative = {relative}, absolute = {absolute} (need 0 ≤ relative < 1, 0 ≤ absolute, both finite)")]
+    InvalidRankPolicy {
+        /// The relative threshold given.
+        relative: f64,
+        /// The absolute threshold given.
+        absolute: f64,
+    },
+    /// The damping factor of damped least squares is negative or not finite.
+    #[error("invalid damping δ = {damping} (need a finite δ ≥ 0)")]
+    InvalidDamping {
+        /// The damping given.
+        damping: f64,
+    },
+    /// The matrix to decompose holds a NaN or an infinity.
+    #[error("matrix holds a non-finite entry")]
+    NonFiniteMatrix,
+    /// Two operands disagree on their number of rows.
+    #[error("dimension mismatch: {what} has {found} rows, expected {expected}")]
+    DimensionMismatch {
+        /// Which operand.
+        what: &'static str,
+        /// The expected number of rows.
+        expected: usize,
+        /// The number found.
+        found: usize,
+    },
+    /// The Jacobi sweeps did not converge (cannot happen for finite input of sane magnitude).
+    #[error("one-sided Jacobi SVD did not converge in {sweeps} sweeps")]
+    NoConvergence {
+        /// The number of sweeps performed.
+        sweeps: usize,
+    },
+}
+
+/// Which singular values count as non-zero (MATH §2.1.1, D2): keep `σ_k > max(relative · σ_max, absolute)`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RankPolicy {
+    relative: f64,
+    absolute: f64,
+}
+
+impl RankPolicy {
+    /// Default relative threshold, as ViSP's `vpServo` pseudo-inverse threshold.
+    pub const DEFAULT_RELATIVE: f64 = 1e-6;
+    /// Default absolute floor: below it a singular value is zero whatever `σ_max` (same unit as the matrix).
+    pub const DEFAULT_ABSOLUTE: f64 = 1e-12;
+
+    /// A policy from a relative threshold (`0 ≤ relative < 1`) and an absolute floor (`absolute ≥ 0`).
+    pub fn new(relative: f64, absolute: f64) -> Result<Self, LinalgError> {
+        let valid = relative.is_finite()
+            && absolute.is_finite()
+            && (0.0..1.0).contains(&relative)
+            && absolute >= 0.0;
+        if valid {
+            Ok(Self { relative, absolute })
+        } else {
+            Err(LinalgError::InvalidRankPolicy { relative, absolute })
+        }
+    }
+
+    /// The relative threshold.
+    pub fn relative(&self) -> f64 {
+        self.relative
+    }
+
+    /// The absolute floor.
+    pub fn absolute(&self) -> f64 {
+        self.absolute
+    }
+
+    /// The cut-off below which (inclusive) a singular value is treated as zero, for a matrix whose largest singular
+    /// value is `sigma_max`.
+    pub fn threshold(&self, sigma_max: f64) -> f64 {
+        (self.relative * sigma_max).max(self.absolute)
+    }
+}
+
+impl Default for RankPolicy {
+    fn default() -> Self {
+        Self {
+            relative: Self::DEFAULT_RELATIVE,
+            absolute: Self::DEFAULT_ABSOLUTE,
+        }
+    }
+}
+
+/// The inverse used for the **velocity** term of each stack level (MATH §2.1.2, D2). The projector update always
+/// uses the truncated, exact `J̃⁺J̃`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum VelocityInverse {
+    /// Truncated pseudo-inverse with the rank policy (the paper's and ViSP's choice).
+    #[default]
+    Truncated,
+    /// Damped least squares `Jᵀ(JJᵀ + δ²I)⁻¹` (Nakamura, Chiaverini), robust near singularities.
+    Damped {
+        /// The damping `δ` (same unit as the singular values of `J̃`).
+        damping: f64,
+    },
+}
+
+impl VelocityInverse {
+    /// Checks the damping factor.
+    pub fn validate(&self) -> Result<(), LinalgError> {
+        match *self {
+            Self::Truncated => Ok(()),
+            Self::Damped { damping } if damping.is_finite() && damping >= 0.0 => Ok(()),
+            Self::Damped { damping } => Err(LinalgError::InvalidDamping { damping }),
+        }
+    }
+}
+
+/// The right half of a singular value decomposition `A = U Σ Vᵀ` of an `m × N` matrix `A`, computed by
+/// [`ColumnSvd::decompose`]. Together with the rotated working matrix `W = A V` (whose column k is `σ_k u_k`) it gives
+/// pseudo-inverses and projectors without forming `U`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnSvd<const N: usize> {
+    /// Right singular vectors, one per column (orthonormal).
+    v: JointMatrix<N>,
+    /// Singular values `σ_k = ‖W e_k‖`, unordered, one per column of `v`.
+    sigma: JointVector<N>,
+    /// The cut-off chosen by the rank policy at the last decomposition.
+    threshold: f64,
+}
+
+/// Maximum number of Jacobi sweeps; quadratic convergence makes 6–10 typical for `N ≤ 12`.
+const MAX_SWEEPS: usize = 60;
+
+impl<const N: usize> Default for ColumnSvd<N> {
+    fn default() -> Self {
+        Self {
+            v: JointMatrix::identity(),
+            sigma: JointVector::zeros(),
+            threshold: 0.0,
+        }
+    }
+}
+
+impl<const N: usize> ColumnSvd<N> {
+    /// Decomposes `work` (an `m × N` matrix `A`, overwritten with `W = A V`) by one-sided Jacobi rotations, and fixes
+    /// the rank with `policy`. Allocates nothing.
+    ///
+    /// # Errors
+    /// [`LinalgError::NonFiniteMatrix`] if `A` holds a NaN or an infinity; [`LinalgError::NoConvergence`] if the
+    /// sweeps do not converge.
+    pub fn decompose<R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        policy: &RankPolicy,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>>,
+    {
+        self.decompose_with_scale(work, policy, 0.0)
+    }
+
+    /// As [`Self::decompose`], with the relative threshold taken against `max(σ_max, reference_scale)` instead of
+    /// `σ_max` alone.
+    ///
+    /// The stack uses this for the limited Jacobian `J̃_i = J_i P^A_{i−1}` with `reference_scale = ‖J_i‖_F`: a
+    /// direction of `J̃_i` that is tiny compared with the task itself is an algorithmic singularity (the task conflicts
+    /// with higher levels) or rounding noise left by a full higher stack, and must be truncated even when it is all
+    /// that is left of `J̃_i`.
+    ///
+    /// # Errors
+    /// As [`Self::decompose`].
+    pub fn decompose_with_scale<R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        policy: &RankPolicy,
+        reference_scale: f64,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>>,
+    {
+        if !all_finite(work) {
+            return Err(LinalgError::NonFiniteMatrix);
+        }
+        self.v = JointMatrix::identity();
+        // Columns below this squared norm are rounding noise (σ ≤ 16 ε ‖A‖_F): they are left alone, since rotations
+        // among them cannot reach relative orthogonality and do not affect any singular value a rank policy keeps.
+        let negligible = (16.0 * f64::EPSILON).powi(2) * work.norm_squared();
+        let mut converged = false;
+        for _ in 0..MAX_SWEEPS {
+            let mut rotated = false;
+            for p in 0..N {
+                for q in (p + 1)..N {
+                    rotated |= self.rotate_pair(work, p, q, negligible);
+                }
+            }
+            if !rotated {
+                converged = true;
+                break;
+            }
+        }
+        if !converged {
+            return Err(LinalgError::NoConvergence { sweeps: MAX_SWEEPS });
+        }
+        for k in 0..N {
+            self.sigma[k] = work.column(k).norm();
+        }
+        self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
+        Ok(())
+    }
+
+    /// One Jacobi rotation of columns `p`, `q` that makes them orthogonal; `false` when they already are (to working
+    /// precision) or one of them is negligible (squared norm at most `negligible`).
+    fn rotate_pair<R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        p: usize,
+        q: usize,
+        negligible: f64,
+    ) -> bool
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>>,
+    {
+        let alpha = work.column(p).norm_squared();
+        let beta = work.column(q).norm_squared();
+        if alpha <= negligible || beta <= negligible {
+            return false;
+        }
+        let gamma = work.column(p).dot(&work.column(q));
+        if gamma.abs() <= f64::EPSILON * (alpha * beta).sqrt() {
+            return false;
+        }
+        let zeta = (beta - alpha) / (2.0 * gamma);
+        let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+        let c = 1.0 / (1.0 + t * t).sqrt();
+        let s = c * t;
+        rotate_columns(work, p, q, c, s);
+        rotate_columns(&mut self.v, p, q, c, s);
+        true
+    }
+
+    /// The largest singular value.
+    pub fn sigma_max(&self) -> f64 {
+        self.sigma.max()
+    }
+
+    /// The singular values (unordered; column k of [`Self::right_vectors`] belongs to entry k).
+    pub fn singular_values(&self) -> &JointVector<N> {
+        &self.sigma
+    }
+
+    /// The right singular vectors, one per column.
+    pub fn right_vectors(&self) -> &JointMatrix<N> {
+        &self.v
+    }
+
+    /// `true` when singular value `k` is kept by the rank policy (`false` for `k ≥ N`).
+    pub fn is_kept(&self, k: usize) -> bool {
+        self.sigma
+            .get(k)
+            .is_some_and(|&sigma| sigma > self.threshold)
+    }
+
+    /// The numerical rank under the rank policy used at decomposition.
+    pub fn rank(&self) -> usize {
+        (0..N).filter(|&k| self.is_kept(k)).count()
+    }
+
+    /// The smallest kept singular value, `None` at rank 0.
+    pub fn smallest_kept(&self) -> Option<f64> {
+        (0..N)
+            .filter(|&k| self.is_kept(k))
+            .map(|k| self.sigma[k])
+            .reduce(f64::min)
+    }
+
+    /// Writes `A^{inv} r` into `out`, where `work` is the `W = A V` left by [`Self::decompose`] and the inverse is the
+    /// truncated pseudo-inverse or damped least squares (MATH §2.1.2).
+    ///
+    /// # Errors
+    /// [`LinalgError::DimensionMismatch`] when `r` and `work` have different row counts.
+    pub fn solve<R, S, SR>(
+        &self,
+        work: &Matrix<f64, R, Const<N>, S>,
+        r: &Vector<f64, R, SR>,
+        inverse: VelocityInverse,
+        out: &mut JointVector<N>,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: RawStorage<f64, R, Const<N>>,
+        SR: RawStorage<f64, R>,
+    {
+        check_rows("right-hand side", work.nrows(), r.nrows())?;
+        out.fill(0.0);
+        for k in 0..N {
+            let sigma_sq = self.sigma[k] * self.sigma[k];
+            let weight = match inverse {
+                VelocityInverse::Truncated if self.is_kept(k) => 1.0 / sigma_sq,
+                VelocityInverse::Truncated => continue,
+                VelocityInverse::Damped { damping } if sigma_sq + damping * damping > 0.0 => {
+                    1.0 / (sigma_sq + damping * damping)
+                }
+                VelocityInverse::Damped { .. } => continue,
+            };
+            // v_k (u_kᵀ r)/σ_k  =  v_k (w_kᵀ r)/σ_k²   since w_k = σ_k u_k.
+            let coefficient = work.column(k).dot(r) * weight;
+            out.axpy(coefficient, &self.v.column(k), 1.0);
+        }
+        Ok(())
+    }
+
+    /// Subtracts the projector onto the row space of `A`, `A⁺A = Σ_{k kept} v_k v_kᵀ`, from `projector`
+    /// (MATH \[M8\]), then re-symmetrises it (MATH §2.1.3).
+    pub fn subtract_row_space_projector(&self, projector: &mut JointMatrix<N>) {
+        for k in (0..N).filter(|&k| self.is_kept(k)) {
+            let v = self.v.column(k);
+            projector.ger(-1.0, &v, &v, 1.0);
+        }
+        symmetrize(projector);
+    }
+
+    /// Writes `V_1ᵀ g`'s norm, with `V_1` the kept right singular vectors: the norm of the part of `g` in the row
+    /// space of `A` (MATH \[M26\]–\[M27\], criterion C2').
+    pub fn row_space_component_norm(&self, g: &JointVector<N>) -> f64 {
+        (0..N)
+            .filter(|&k| self.is_kept(k))
+            .map(|k| self.v.column(k).dot(g).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+}
+
+fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), LinalgError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(LinalgError::DimensionMismatch {
+            what,
+            expected,
+            found,
+        })
+    }
+}
+
+/// Replaces columns `p`, `q` of `m` by `c·m_p − s·m_q` and `s·m_p + c·m_q`.
+fn rotate_columns<R, C, S>(m: &mut Matrix<f64, R, C, S>, p: usize, q: usize, c: f64, s: f64)
+where
+    R: Dim,
+    C: Dim,
+    S: StorageMut<f64, R, C>,
+{
+    for i in 0..m.nrows() {
+        let (a, b) = (m[(i, p)], m[(i, q)]);
+        m[(i, p)] = c * a - s * b;
+        m[(i, q)] = s * a + c * b;
+    }
+}
+
+/// Replaces `p` by `(p + pᵀ)/2`, removing the asymmetry that repeated projector updates accumulate (MATH §2.1.3).
+pub fn symmetrize<const N: usize>(p: &mut JointMatrix<N>) {
+    for i in 0..N {
+        for j in (i + 1)..N {
+            let mean = 0.5 * (p[(i, j)] + p[(j, i)]);
+            p[(i, j)] = mean;
+            p[(j, i)] = mean;
+        }
+    }
+}
+
+/// The orthogonal projector `I − A⁺A` onto the kernel of `a` (`m × N`), with the rank decided by `policy`
+/// (MATH §0, `P_i`). Copies `a` into `work` (same shape), which it overwrites.
+///
+/// # Errors
+/// As [`ColumnSvd::decompose`]; [`LinalgError::DimensionMismatch`] when `work` and `a` differ in rows.
+pub fn null_space_projector<const N: usize, R, S, SW>(
+    a: &Matrix<f64, R, Const<N>, S>,
+    work: &mut Matrix<f64, R, Const<N>, SW>,
+    policy: &RankPolicy,
+) -> Result<JointMatrix<N>, LinalgError>
+where
+    R: Dim,
+    S: RawStorage<f64, R, Const<N>>,
+    SW: StorageMut<f64, R, Const<N>>,
+{
+    check_rows("work", a.nrows(), work.nrows())?;
+    work.copy_from(a);
+    let mut svd = ColumnSvd::default();
+    svd.decompose(work, policy)?;
+    let mut projector = JointMatrix::identity();
+    svd.subtract_row_space_projector(&mut projector);
+    Ok(projector)
+}
+
+/// The Moore–Penrose pseudo-inverse `A⁺` (`N × m`) of an `m × N` matrix with the rank decided by `policy`. A
+/// convenience for analysis and tests; it allocates when `m` is dynamic. The control loop uses [`ColumnSvd`] directly.
+///
+/// # Errors
+/// As [`ColumnSvd::decompose`].
+pub fn pseudo_inverse<const N: usize, R, S>(
+    a: &Matrix<f64, R, Const<N>, S>,
+    policy: &RankPolicy,
+) -> Result<nalgebra::OMatrix<f64, Const<N>, R>, LinalgError>
+where
+    R: Dim,
+    S: nalgebra::Storage<f64, R, Const<N>>,
+    nalgebra::DefaultAllocator:
+        nalgebra::allocator::Allocator<R, Const<N>> + nalgebra::allocator::Allocator<Const<N>, R>,
+{
+    let mut work = a.clone_owned();
+    let mut svd = ColumnSvd::default();
+    svd.decompose(&mut work, policy)?;
+    let (rows, cols) = (Const::<N>, R::from_usize(a.nrows()));
+    let mut out = nalgebra::OMatrix::<f64, Const<N>, R>::zeros_generic(rows, cols);
+    for k in (0..N).filter(|&k| svd.is_kept(k)) {
+        let sigma_sq = svd.sigma[k] * svd.sigma[k];
+        // v_k u_kᵀ / σ_k = v_k w_kᵀ / σ_k²
+        out.ger(1.0 / sigma_sq, &svd.v.column(k), &work.column(k), 1.0);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use nalgebra::{DMatrix, Dyn, OMatrix, SMatrix};
+    use proptest::prelude::*;
+
+    fn matrix_strategy<const N: usize>(
+        rows: usize,
+    ) -> impl Strategy<Value = OMatrix<f64, Dyn, Const<N>>> {
+        proptest::collection::vec(-1.0..1.0f64, rows * N).prop_map(move |data| {
+            OMatrix::<f64, Dyn, Const<N>>::from_row_slice_generic(Dyn(rows), Const::<N>, &data)
+        })
+    }
+
+    /// Reference pseudo-inverse from nalgebra's own (Golub–Kahan) SVD with the same relative rule.
+    fn reference_pinv(a: &DMatrix<f64>, relative: f64) -> DMatrix<f64> {
+        let svd = a.clone().svd(true, true);
+        let sigma_max = svd.singular_values.max();
+        svd.pseudo_inverse(relative * sigma_max).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// The Moore–Penrose conditions and agreement with an independent SVD, for wide, square and tall matrices.
+        #[test]
+        fn pseudo_inverse_matches_reference(rows in 1usize..10, seed in matrix_strategy::<6>(10)) {
+            let a = seed.rows(0, rows).into_owned();
+            let pinv = pseudo_inverse(&a, &RankPolicy::default()).unwrap();
+            let dense = DMatrix::from_iterator(rows, 6, a.iter().copied());
+            let reference = reference_pinv(&dense, 1e-6);
+            prop_assert!((DMatrix::from_iterator(6, rows, pinv.iter().copied()) - reference).norm() < 1e-9);
+            prop_assert!((&a * &pinv * &a - &a).norm() < 1e-10);
+            prop_assert!((&pinv * &a * &pinv - &pinv).norm() < 1e-9);
+        }
+
+        /// A rank-deficient matrix (rank 2 built as a product) is detected and its kernel projector is exact.
+        #[test]
+        fn rank_and_projector_of_deficient_matrix(left in matrix_strategy::<2>(5), right in matrix_strategy::<7>(2)) {
+            let a = &left * &right; // 5 × 7, rank 2
+            let mut work = a.clone();
+            let mut svd = ColumnSvd::<7>::default();
+            svd.decompose(&mut work, &RankPolicy::default()).unwrap();
+            prop_assert_eq!(svd.rank(), 2);
+            let mut work2 = a.clone();
+            let p = null_space_projector(&a, &mut work2, &RankPolicy::default()).unwrap();
+            prop_assert!((&a * p).norm() < 1e-12);
+            prop_assert!((p * p - p).norm() < 1e-12);
+            prop_assert!((p - p.transpose()).norm() < 1e-15);
+            prop_assert!((p.trace() - 5.0).abs() < 1e-10);
+        }
+    }
+
+    #[test]
+    fn damped_inverse_matches_its_formula() {
+        let a = SMatrix::<f64, 3, 6>::from_fn(|i, j| ((i * 6 + j) as f64 * 0.37).sin());
+        let r = nalgebra::Vector3::new(0.3, -0.2, 0.5);
+        let delta = 0.2;
+        let mut work = a;
+        let mut svd = ColumnSvd::<6>::default();
+        svd.decompose(&mut work, &RankPolicy::default()).unwrap();
+        let mut out = JointVector::<6>::zeros();
+        svd.solve(
+            &work,
+            &r,
+            VelocityInverse::Damped { damping: delta },
+            &mut out,
+        )
+        .unwrap();
+        let expected = a.transpose()
+            * (a * a.transpose() + nalgebra::Matrix3::identity() * delta * delta)
+                .try_inverse()
+                .unwrap()
+            * r;
+        assert_relative_eq!(out, expected, epsilon = 1e-13);
+    }
+
+    #[test]
+    fn zero_matrix_has_rank_zero_and_identity_projector() {
+        let a = SMatrix::<f64, 2, 6>::zeros();
+        let mut work = a;
+        let p = null_space_projector(&a, &mut work, &RankPolicy::default()).unwrap();
+        assert_eq!(p, JointMatrix::<6>::identity());
+    }
+
+    #[test]
+    fn relative_threshold_drops_tiny_singular_values() {
+        // diag(1, 1e-8): rank 1 under the default relative 1e-6, rank 2 under 1e-9.
+        let a = SMatrix::<f64, 2, 2>::new(1.0, 0.0, 0.0, 1e-8);
+        let mut svd = ColumnSvd::<2>::default();
+        svd.decompose(&mut a.clone(), &RankPolicy::default())
+            .unwrap();
+        assert_eq!(svd.rank(), 1);
+        svd.decompose(&mut a.clone(), &RankPolicy::new(1e-9, 0.0).unwrap())
+            .unwrap();
+        assert_eq!(svd.rank(), 2);
+        assert_relative_eq!(svd.smallest_kept().unwrap(), 1e-8, max_relative = 1e-12);
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        assert!(matches!(
+            RankPolicy::new(-1e-6, 0.0),
+            Err(LinalgError::InvalidRankPolicy { .. })
+        ));
+        assert!(RankPolicy::new(1.0, 0.0).is_err());
+        assert!(RankPolicy::new(1e-6, f64::NAN).is_err());
+        assert_eq!(
+            VelocityInverse::Damped { damping: -0.1 }.validate(),
+            Err(LinalgError::InvalidDamping { damping: -0.1 })
+        );
+        let mut a = SMatrix::<f64, 2, 3>::zeros();
+        a[(1, 2)] = f64::NAN;
+        let mut svd = ColumnSvd::<3>::default();
+        assert_eq!(
+            svd.decompose(&mut a, &RankPolicy::default()),
+            Err(LinalgError::NonFiniteMatrix)
+        );
+    }
+}

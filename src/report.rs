@@ -1,0 +1,353 @@
+//! Reports of simulated runs: the `summary.json` of the experiments and, with the `plot` feature, their figures
+//! (the paper's Fig. 5–8).
+//!
+//! The summary schema (extra fields allowed):
+//!
+//! ```text
+//! {"scenario": str, "runs": [{"name": str, "outcome": "converged"|"joint_limit"|"feature_lost"|"max_iterations",
+//!   "iterations": int, "joint": int|null, "stacked_at_end": [task names],
+//!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert", "task": str}],
+//!   "max_velocity_jump": float, "final_error_norm": float, "min_normalized_margin": float}]}
+//! ```
+
+use crate::controller::EventKind;
+use crate::scenario::{RunKind, Scenario, ScenarioError};
+use crate::sim::{Outcome, Run};
+use serde::Serialize;
+use std::path::Path;
+
+/// Errors while writing a report.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// The scenario could not be built or run.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// A file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The path.
+        path: std::path::PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A figure could not be drawn.
+    #[cfg(feature = "plot")]
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+}
+
+/// Runs the four runs of MATH §9 on `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
+/// `summary.json` into `out_dir`, and returns the summary.
+///
+/// # Errors
+/// Scenario, simulation, figure or I/O failures.
+pub fn write_experiment<const N: usize>(
+    scenario: &Scenario,
+    out_dir: &Path,
+) -> Result<Summary, ReportError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ReportError::Io { path, source }
+    };
+    std::fs::create_dir_all(out_dir).map_err(io(out_dir))?;
+    let experiment = scenario.experiment::<N>()?;
+    let mut runs = Vec::new();
+    for kind in RunKind::ALL {
+        let run = scenario.run_experiment(&experiment, kind)?;
+        #[cfg(feature = "plot")]
+        {
+            let desired = experiment
+                .scene
+                .view_from(&experiment.desired_camera_from_target)
+                .map_err(ScenarioError::from)?
+                .points;
+            let context = FigureContext {
+                intrinsics: experiment.scene.intrinsics(),
+                desired: &desired,
+            };
+            write_figures(&run, kind.name(), context, out_dir)?;
+        }
+        runs.push(RunSummary::new(kind.name(), &run));
+    }
+    let summary = Summary {
+        scenario: scenario.name.clone(),
+        runs,
+    };
+    let path = out_dir.join("summary.json");
+    let json = serde_json::to_string_pretty(&summary).map_err(|e| ReportError::Io {
+        path: path.clone(),
+        source: e.into(),
+    })?;
+    std::fs::write(&path, json).map_err(io(&path))?;
+    Ok(summary)
+}
+
+impl std::fmt::Display for Summary {
+    /// A table of the runs: outcome, iterations, joint, events, continuity, error, margin.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "scenario {}", self.scenario)?;
+        writeln!(
+            f,
+            "{:<17} {:<15} {:>6} {:>5} {:>10} {:>10} {:>7}  events",
+            "run", "outcome", "iter", "joint", "max jump", "final ‖e‖", "margin"
+        )?;
+        for run in &self.runs {
+            let events: Vec<String> = run
+                .events
+                .iter()
+                .map(|e| format!("{:?} {}@{}", e.kind, e.task, e.iteration).to_lowercase())
+                .collect();
+            writeln!(
+                f,
+                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.2e} {:>7.3}  {}",
+                run.name,
+                run.outcome,
+                run.iterations,
+                run.joint.map_or("-".into(), |j| j.to_string()),
+                run.max_velocity_jump,
+                run.final_error_norm,
+                run.min_normalized_margin,
+                events.join(", ")
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The summary of an experiment: one entry per run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// The scenario's name.
+    pub scenario: String,
+    /// The runs, in order.
+    pub runs: Vec<RunSummary>,
+}
+
+/// One stack change, as summarised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EventSummary {
+    /// The iteration of the change.
+    pub iteration: usize,
+    /// `push`, `remove` or `reinsert`.
+    pub kind: EventKind,
+    /// The task's name.
+    pub task: String,
+}
+
+/// The summary of one run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// The run's name (`classical`, `stack`, `stack_gradient`, `stack_controller`, or any).
+    pub name: String,
+    /// `converged`, `joint_limit`, `feature_lost` or `max_iterations`.
+    pub outcome: &'static str,
+    /// The number of iterations performed.
+    pub iterations: usize,
+    /// The joint that reached its limit (0-based), or `null`.
+    pub joint: Option<usize>,
+    /// The names of the tasks stacked at the end.
+    pub stacked_at_end: Vec<String>,
+    /// The stack changes.
+    pub events: Vec<EventSummary>,
+    /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the events.
+    pub max_velocity_jump: f64,
+    /// `‖e‖` over all tasks at the end.
+    pub final_error_norm: f64,
+    /// The smallest distance to a joint limit over time and joints, as a fraction of the range.
+    pub min_normalized_margin: f64,
+    /// The point lost, for a `feature_lost` outcome (extra field).
+    pub lost_point: Option<usize>,
+}
+
+impl RunSummary {
+    /// The summary of `run`, under `name`.
+    pub fn new<const N: usize>(name: &str, run: &Run<N>) -> Self {
+        let (joint, lost_point) = match &run.outcome {
+            Outcome::JointLimit { joint, .. } => (Some(*joint), None),
+            Outcome::FeatureLost { point } => (None, Some(*point)),
+            Outcome::Converged | Outcome::MaxIterations => (None, None),
+        };
+        Self {
+            name: name.into(),
+            outcome: run.outcome.name(),
+            iterations: run.iterations(),
+            joint,
+            stacked_at_end: run.stacked_at_end().into_iter().map(String::from).collect(),
+            events: run
+                .events
+                .iter()
+                .map(|e| EventSummary {
+                    iteration: e.iteration,
+                    kind: e.kind,
+                    task: run.task_names[e.task].clone(),
+                })
+                .collect(),
+            max_velocity_jump: run.max_velocity_jump(),
+            final_error_norm: run.final_error_norm(),
+            min_normalized_margin: run.min_normalized_margin(),
+            lost_point,
+        }
+    }
+}
+
+#[cfg(feature = "plot")]
+pub use figures::{write_figures, FigureContext};
+
+#[cfg(feature = "plot")]
+mod figures {
+    use crate::camera::CameraIntrinsics;
+    use crate::controller::EventKind;
+    use crate::plot::{
+        HorizontalLine, LinePlot, Marker, PlotError, RenderedFiles, Scale, Series, Trajectory,
+        TrajectoryPlot,
+    };
+    use crate::sim::Run;
+    use std::path::Path;
+
+    /// What the figures need besides the run: the camera (for pixels) and the desired image.
+    #[derive(Debug, Clone, Copy)]
+    pub struct FigureContext<'a> {
+        /// The camera intrinsics.
+        pub intrinsics: &'a CameraIntrinsics,
+        /// The desired image points (normalised).
+        pub desired: &'a [crate::camera::ImagePoint; 4],
+    }
+
+    fn event_markers<const N: usize>(run: &Run<N>) -> Vec<Marker> {
+        run.events
+            .iter()
+            .filter(|e| e.iteration > 0)
+            .map(|e| {
+                let verb = match e.kind {
+                    EventKind::Push => "push",
+                    EventKind::Remove => "remove",
+                    EventKind::Reinsert => "reinsert",
+                };
+                Marker::new(
+                    e.iteration as f64,
+                    format!("{verb} {}", run.task_names[e.task]),
+                )
+            })
+            .collect()
+    }
+
+    /// Writes the figures of `run` into `out_dir` as `{name}_joints`, `{name}_errors`, `{name}_image` and, when the run
+    /// computed criteria, `{name}_criteria` (PNG and SVG each).
+    ///
+    /// # Errors
+    /// [`PlotError`] on I/O or invalid data (an empty run).
+    pub fn write_figures<const N: usize>(
+        run: &Run<N>,
+        name: &str,
+        context: FigureContext<'_>,
+        out_dir: &Path,
+    ) -> Result<Vec<RenderedFiles>, PlotError> {
+        let iteration = |k: usize| run.records[k].iteration as f64;
+        let mut files = Vec::new();
+        let joints = LinePlot {
+            title: format!("{name}: normalised joint positions (limits at 0 and 1)"),
+            x_label: "iteration".into(),
+            y_label: "(q − q_min) / (q_max − q_min)".into(),
+            series: (0..N)
+                .map(|j| {
+                    Series::new(
+                        format!("q{j}"),
+                        run.records
+                            .iter()
+                            .enumerate()
+                            .map(|(k, r)| (iteration(k), run.limits.normalized(&r.q)[j])),
+                    )
+                })
+                .collect(),
+            markers: event_markers(run),
+            horizontal_lines: vec![
+                HorizontalLine::new(0.0, "limit"),
+                HorizontalLine::new(1.0, "limit"),
+                HorizontalLine::new(run.limits.activation_ratio(), "activation"),
+                HorizontalLine::new(1.0 - run.limits.activation_ratio(), "activation"),
+            ],
+            y_range: Some((-0.05, 1.05)),
+            ..LinePlot::default()
+        };
+        files.push(joints.render(out_dir, &format!("{name}_joints"))?);
+        let errors = LinePlot {
+            title: format!("{name}: task errors"),
+            x_label: "iteration".into(),
+            y_label: "‖e_i‖".into(),
+            series: run
+                .task_names
+                .iter()
+                .enumerate()
+                .map(|(i, task)| {
+                    Series::new(
+                        task.clone(),
+                        run.records
+                            .iter()
+                            .enumerate()
+                            .map(|(k, r)| (iteration(k), r.task_errors[i].max(1e-9))),
+                    )
+                })
+                .collect(),
+            markers: event_markers(run),
+            y_scale: Scale::Log10,
+            ..LinePlot::default()
+        };
+        files.push(errors.render(out_dir, &format!("{name}_errors"))?);
+        let pixel = |x: f64, y: f64| context.intrinsics.normalized_to_pixel(x, y);
+        let image = TrajectoryPlot {
+            title: format!("{name}: image trajectories of the four points"),
+            x_label: "u (px)".into(),
+            y_label: "v (px)".into(),
+            trajectories: (0..4)
+                .map(|p| {
+                    let d = context.desired[p];
+                    Trajectory::new(
+                        format!("point {p}"),
+                        run.records
+                            .iter()
+                            .map(|r| pixel(r.image[p].x, r.image[p].y)),
+                        Some(pixel(d.x, d.y)),
+                    )
+                })
+                .collect(),
+            x_range: Some((0.0, context.intrinsics.width())),
+            y_range: Some((0.0, context.intrinsics.height())),
+            ..TrajectoryPlot::default()
+        };
+        files.push(image.render(out_dir, &format!("{name}_image"))?);
+        let criteria: Vec<Series> = run
+            .task_names
+            .iter()
+            .enumerate()
+            .filter_map(|(i, task)| {
+                let points: Vec<(f64, f64)> = run
+                    .records
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, r)| {
+                        r.criteria
+                            .iter()
+                            .find(|c| c.task == i)
+                            .map(|c| (iteration(k), c.combined))
+                    })
+                    .collect();
+                (!points.is_empty()).then(|| Series::new(task.clone(), points))
+            })
+            .collect();
+        if !criteria.is_empty() {
+            let plot = LinePlot {
+                title: format!(
+                    "{name}: removal criterion S_i = (C1'_i + C2'_i)/‖∇h‖ of the stacked tasks"
+                ),
+                x_label: "iteration".into(),
+                y_label: "S_i".into(),
+                series: criteria,
+                markers: event_markers(run),
+                ..LinePlot::default()
+            };
+            files.push(plot.render(out_dir, &format!("{name}_criteria"))?);
+        }
+        Ok(files)
+    }
+}

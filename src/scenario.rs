@@ -1,0 +1,514 @@
+//! Scenario files: everything a simulated experiment needs, in TOML (MATH §9, D12).
+//!
+//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera mount), the camera
+//! intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target seen
+//! from the camera there: the target is placed so that this pose is reachable), the start configuration, the tasks
+//! (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.
+//! Field names carry their units (`translation_m`, `rpy_deg`); unknown fields are errors, so a value written in the
+//! wrong unit under the wrong name is caught, and every semantic error names its field.
+//!
+//! From one scenario, [`Scenario::run`] runs any of the paper's four [`RunKind`]s (MATH §9):
+//!
+//! | run | tasks | avoidance | removal |
+//! |---|---|---|---|
+//! | `classical` | one task of six features | no | no |
+//! | `stack` | the four tasks pushed one by one | no | no |
+//! | `stack_gradient` | the four tasks pushed one by one | projected gradient | no |
+//! | `stack_controller` | the four tasks pushed one by one | projected gradient | yes (the full method) |
+//!
+//! ```
+//! let scenario = servostack::scenario::Scenario::from_toml_str(
+//!     include_str!("../assets/scenarios/paper_afma6.toml"), None)?;
+//! assert_eq!(scenario.name, "paper_afma6");
+//! # Ok::<(), servostack::scenario::ScenarioError>(())
+//! ```
+
+use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
+use crate::controller::{ControllerParameters, RemovalCriterion};
+use crate::feature::InteractionSource;
+use crate::law::{ControlLaw, LawError};
+use crate::math::JointVector;
+use crate::robot::{builtin, RobotError, SerialChain};
+use crate::sim::{simulate, Drive, Run, Scene, SimError, SimulationParameters};
+use crate::target::{RectangleTarget, TargetError};
+use crate::task::TaskError;
+use crate::visual_task::{classical_task, paper_tasks};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Errors of scenario files. Each names the field at fault.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario {path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML for a scenario (missing or unknown field, wrong type); the message names the field
+    /// and its line.
+    #[error("scenario syntax: {0}")]
+    Syntax(#[from] toml::de::Error),
+    /// A field has an invalid value.
+    #[error("scenario field `{field}`: {reason}")]
+    Invalid {
+        /// The field, as a dotted path (`start.joints`).
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The robot could not be built.
+    #[error("scenario field `robot`: {0}")]
+    Robot(#[from] RobotError),
+    /// The camera could not be built.
+    #[error("scenario field `camera`: {0}")]
+    Camera(#[from] CameraError),
+    /// The target could not be built.
+    #[error("scenario field `target`: {0}")]
+    Target(#[from] TargetError),
+    /// The tasks could not be built (a feature undefined at the desired pose, a bad gain).
+    #[error("scenario field `tasks`: {0}")]
+    Task(#[from] TaskError),
+    /// The control law's gains are invalid.
+    #[error("scenario field `avoidance`: {0}")]
+    Law(#[from] LawError),
+    /// The simulation could not run.
+    #[error(transparent)]
+    Simulation(#[from] SimError),
+}
+
+fn invalid(field: &str, reason: impl Into<String>) -> ScenarioError {
+    ScenarioError::Invalid {
+        field: field.into(),
+        reason: reason.into(),
+    }
+}
+
+/// A rigid transform in a file: translation in metres, then roll–pitch–yaw in degrees (`R = Rz(yaw) Ry(pitch)
+/// Rx(roll)`, nalgebra's `from_euler_angles`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseSpec {
+    /// Translation (m).
+    pub translation_m: [f64; 3],
+    /// Roll, pitch, yaw (degrees).
+    #[serde(default)]
+    pub rpy_deg: [f64; 3],
+}
+
+impl PoseSpec {
+    fn to_isometry(self, field: &str) -> Result<Isometry3<f64>, ScenarioError> {
+        if !self
+            .translation_m
+            .iter()
+            .chain(&self.rpy_deg)
+            .all(|v| v.is_finite())
+        {
+            return Err(invalid(field, "non-finite value"));
+        }
+        let [roll, pitch, yaw] = self.rpy_deg.map(f64::to_radians);
+        let [x, y, z] = self.translation_m;
+        Ok(Isometry3::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+        ))
+    }
+}
+
+/// The robot: a built-in arm by name, or a URDF file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, untagged)]
+pub enum RobotSpec {
+    /// A built-in robot (`"afma6"`, `"ur5e"`, `"rail7"`) with its camera mount.
+    Builtin {
+        /// Its name.
+        builtin: String,
+    },
+    /// A chain of a URDF file (path relative to the scenario file) with a camera mount on the tip link.
+    Urdf {
+        /// The URDF file.
+        urdf: PathBuf,
+        /// The base link.
+        base_link: String,
+        /// The tip (end-effector) link.
+        tip_link: String,
+        /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`).
+        camera_mount: PoseSpec,
+    },
+}
+
+/// Pinhole intrinsics (px).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Horizontal focal length (px).
+    pub fx: f64,
+    /// Vertical focal length (px).
+    pub fy: f64,
+    /// Principal point abscissa (px).
+    pub cx: f64,
+    /// Principal point ordinate (px).
+    pub cy: f64,
+    /// Image width (px).
+    pub width: f64,
+    /// Image height (px).
+    pub height: f64,
+}
+
+/// The target rectangle (m), four points in its plane `z = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TargetSpec {
+    /// Width along the object x axis (m).
+    pub width_m: f64,
+    /// Height along the object y axis (m).
+    pub height_m: f64,
+}
+
+/// Where the camera must end: at joint configuration `joints`, it sees the target at `camera_from_target` (ViSP `cdMo`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesiredSpec {
+    /// The desired joint configuration `q_d` (m or rad per joint).
+    pub joints: Vec<f64>,
+    /// The target pose in the desired camera frame.
+    pub camera_from_target: PoseSpec,
+}
+
+/// The start configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartSpec {
+    /// `q(0)` (m or rad per joint), inside the joint limits.
+    pub joints: Vec<f64>,
+}
+
+/// The visual tasks.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TasksSpec {
+    /// `λ_i` (s⁻¹) of centroid, angle, area (`a_n`) and third-order tasks.
+    pub gains: [f64; 4],
+    /// `λ` (s⁻¹) of the classical six-feature task.
+    pub classical_gain: f64,
+    /// Where interaction matrices are evaluated (MATH D10): `"exact"`, `"paper_approx"` or `"desired"`.
+    #[serde(default)]
+    pub interaction: InteractionKind,
+    /// The a-priori depth `Z_g` (m) of the paper's centroid approximation (F31); default: the desired depth.
+    #[serde(default)]
+    pub a_priori_depth_m: Option<f64>,
+}
+
+/// The interaction source as written in files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InteractionKind {
+    /// [`InteractionSource::Exact`].
+    #[default]
+    Exact,
+    /// [`InteractionSource::PaperApprox`].
+    PaperApprox,
+    /// [`InteractionSource::Desired`].
+    Desired,
+}
+
+impl From<InteractionKind> for InteractionSource {
+    fn from(kind: InteractionKind) -> Self {
+        match kind {
+            InteractionKind::Exact => Self::Exact,
+            InteractionKind::PaperApprox => Self::PaperApprox,
+            InteractionKind::Desired => Self::Desired,
+        }
+    }
+}
+
+/// Joint-limit avoidance and the transition term.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AvoidanceSpec {
+    /// `ρ` of MATH \[M19\], in (0, 1/2).
+    pub activation_ratio: f64,
+    /// `κ` (s⁻¹), the projected-gradient gain.
+    pub gain: f64,
+    /// `μ` (s⁻¹) of the transition term; default `10 · max λ_i` (D1).
+    #[serde(default)]
+    pub transition_gain: Option<f64>,
+}
+
+/// A complete scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// A short name, reported in summaries.
+    pub name: String,
+    /// What the scenario shows, and why its values were chosen.
+    #[serde(default)]
+    pub description: String,
+    /// The robot.
+    pub robot: RobotSpec,
+    /// The camera intrinsics.
+    pub camera: CameraSpec,
+    /// The target.
+    pub target: TargetSpec,
+    /// The desired pose.
+    pub desired: DesiredSpec,
+    /// The start configuration.
+    pub start: StartSpec,
+    /// The tasks.
+    pub tasks: TasksSpec,
+    /// Avoidance and transition.
+    pub avoidance: AvoidanceSpec,
+    /// The stack controller's thresholds (defaults of [`ControllerParameters`] when absent; `allow_removal` is set by
+    /// the run kind).
+    #[serde(default)]
+    pub controller: ControllerParameters,
+    /// Period, budget, convergence threshold, image margin.
+    #[serde(default)]
+    pub simulation: SimulationParameters,
+    /// The directory relative paths are resolved against (set by [`Scenario::from_file`]).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+}
+
+/// The paper's four runs (MATH §9).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunKind {
+    /// Classical IBVS: one task with the six features, no avoidance.
+    Classical,
+    /// Tasks pushed one by one, no avoidance.
+    Stack,
+    /// Tasks pushed one by one, with projected-gradient joint-limit avoidance.
+    StackGradient,
+    /// The full method: avoidance and the stack controller's removals and re-insertions.
+    StackController,
+}
+
+impl RunKind {
+    /// The four runs, in the paper's order.
+    pub const ALL: [RunKind; 4] = [
+        Self::Classical,
+        Self::Stack,
+        Self::StackGradient,
+        Self::StackController,
+    ];
+
+    /// The run's name: `classical`, `stack`, `stack_gradient`, `stack_controller`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Classical => "classical",
+            Self::Stack => "stack",
+            Self::StackGradient => "stack_gradient",
+            Self::StackController => "stack_controller",
+        }
+    }
+}
+
+/// A scenario turned into models: the scene and what the runs need.
+#[derive(Debug, Clone)]
+pub struct Experiment<const N: usize> {
+    /// The scene (robot, camera, target, limits).
+    pub scene: Scene<N>,
+    /// The start configuration.
+    pub start: JointVector<N>,
+    /// The desired joint configuration.
+    pub desired_joints: JointVector<N>,
+    /// The target pose in the desired camera frame.
+    pub desired_camera_from_target: Isometry3<f64>,
+}
+
+impl Scenario {
+    /// Parses a scenario; relative paths are resolved against `base_dir` (or the working directory).
+    ///
+    /// # Errors
+    /// [`ScenarioError::Syntax`] naming the field and line.
+    pub fn from_toml_str(text: &str, base_dir: Option<&Path>) -> Result<Self, ScenarioError> {
+        let mut scenario: Self = toml::from_str(text)?;
+        scenario.base_dir = base_dir.map(Path::to_path_buf);
+        Ok(scenario)
+    }
+
+    /// Reads and parses a scenario file.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Io`], [`ScenarioError::Syntax`].
+    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml_str(&text, path.parent())
+    }
+
+    /// The scene and configurations, with every field checked.
+    ///
+    /// # Errors
+    /// The first invalid field: an unknown robot, a joint vector of the wrong size or outside the limits, invalid
+    /// intrinsics, target, poses, gains or thresholds.
+    pub fn experiment<const N: usize>(&self) -> Result<Experiment<N>, ScenarioError> {
+        let (chain, camera) = self.robot::<N>()?;
+        let desired_joints = joints::<N>("desired.joints", &self.desired.joints)?;
+        let start = joints::<N>("start.joints", &self.start.joints)?;
+        for (field, q) in [
+            ("start.joints", &start),
+            ("desired.joints", &desired_joints),
+        ] {
+            if let Some(joint) = (0..N)
+                .find(|&i| !(chain.lower_limits()[i]..=chain.upper_limits()[i]).contains(&q[i]))
+            {
+                return Err(invalid(
+                    field,
+                    format!(
+                        "joint {joint} = {} is outside its limits [{}, {}]",
+                        q[joint],
+                        chain.lower_limits()[joint],
+                        chain.upper_limits()[joint]
+                    ),
+                ));
+            }
+        }
+        let c = self.camera;
+        let intrinsics = CameraIntrinsics::new(c.fx, c.fy, c.cx, c.cy, c.width, c.height)?;
+        let target = RectangleTarget::new(self.target.width_m, self.target.height_m)?;
+        let desired_camera_from_target = self
+            .desired
+            .camera_from_target
+            .to_isometry("desired.camera_from_target")?;
+        let scene = Scene::with_target_seen_from(
+            chain,
+            camera,
+            intrinsics,
+            target,
+            &desired_joints,
+            &desired_camera_from_target,
+            self.avoidance.activation_ratio,
+        )
+        .map_err(|e| match e {
+            SimError::Cost(cost) => invalid("avoidance.activation_ratio", cost.to_string()),
+            other => other.into(),
+        })?;
+        self.controller
+            .validate()
+            .map_err(|e| invalid("controller", e.to_string()))?;
+        Ok(Experiment {
+            scene,
+            start,
+            desired_joints,
+            desired_camera_from_target,
+        })
+    }
+
+    fn robot<const N: usize>(&self) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
+        match &self.robot {
+            RobotSpec::Builtin { builtin } => {
+                let robot = builtin::by_name::<N>(builtin)?;
+                Ok((robot.chain, robot.camera))
+            }
+            RobotSpec::Urdf {
+                urdf,
+                base_link,
+                tip_link,
+                camera_mount,
+            } => {
+                let path = match &self.base_dir {
+                    Some(dir) if urdf.is_relative() => dir.join(urdf),
+                    _ => urdf.clone(),
+                };
+                let chain = SerialChain::from_urdf_file(&path, base_link, tip_link)?;
+                let mount = camera_mount.to_isometry("robot.camera_mount")?;
+                Ok((chain, EyeInHand::new(mount)?))
+            }
+        }
+    }
+
+    /// Runs one of the four runs of MATH §9 on this scenario.
+    ///
+    /// # Errors
+    /// Invalid fields (see [`Scenario::experiment`]), tasks undefined at the desired pose, simulation failures. The
+    /// run's outcome (converged, joint limit, ...) is data in the [`Run`], not an error.
+    pub fn run<const N: usize>(&self, kind: RunKind) -> Result<Run<N>, ScenarioError> {
+        let experiment = self.experiment::<N>()?;
+        self.run_experiment(&experiment, kind)
+    }
+
+    /// As [`Scenario::run`], on an experiment already built.
+    ///
+    /// # Errors
+    /// As [`Scenario::run`].
+    pub fn run_experiment<const N: usize>(
+        &self,
+        experiment: &Experiment<N>,
+        kind: RunKind,
+    ) -> Result<Run<N>, ScenarioError> {
+        let desired_view = experiment
+            .scene
+            .view_from(&experiment.desired_camera_from_target)?;
+        let desired = desired_view.observation().map_err(SimError::from)?;
+        let desired_depth = experiment.desired_camera_from_target.translation.z;
+        let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(desired_depth);
+        let source = self.tasks.interaction.into();
+        let tasks = match kind {
+            RunKind::Classical => vec![classical_task(
+                &desired,
+                desired_depth,
+                a_priori_depth,
+                self.tasks.classical_gain,
+                source,
+            )?],
+            _ => paper_tasks(
+                &desired,
+                desired_depth,
+                a_priori_depth,
+                self.tasks.gains,
+                source,
+            )?,
+        };
+        let avoid = matches!(kind, RunKind::StackGradient | RunKind::StackController);
+        let kappa = if avoid { self.avoidance.gain } else { 0.0 };
+        let max_gain = match kind {
+            RunKind::Classical => self.tasks.classical_gain,
+            _ => self.tasks.gains.iter().copied().fold(0.0, f64::max),
+        };
+        let mu = self
+            .avoidance
+            .transition_gain
+            .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
+        let law = ControlLaw::new(mu, kappa)?;
+        let controller = ControllerParameters {
+            allow_removal: kind == RunKind::StackController,
+            ..self.controller
+        };
+        let drive = Drive {
+            law: &law,
+            controller,
+            avoid_joint_limits: avoid,
+        };
+        Ok(simulate(
+            &experiment.scene,
+            &tasks,
+            drive,
+            &experiment.start,
+            &self.simulation,
+        )?)
+    }
+}
+
+fn joints<const N: usize>(field: &str, values: &[f64]) -> Result<JointVector<N>, ScenarioError> {
+    if values.len() != N {
+        return Err(invalid(
+            field,
+            format!("{} values for a robot with {N} joints", values.len()),
+        ));
+    }
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(invalid(field, format!("value {i} is not finite")));
+    }
+    Ok(JointVector::from_column_slice(values))
+}
+
+/// The criterion enum is part of the file format through [`ControllerParameters`].
+const _: Option<RemovalCriterion> = None;

@@ -1,0 +1,508 @@
+//! Kinematic simulation: a robot with an eye-in-hand camera looking at a planar target, driven by the stack controller
+//! (MATH §9, D11).
+//!
+//! Each iteration at time `t = k·Δt`:
+//!
+//! 1. forward kinematics and `eJe(q)`; the camera pose `base_from_camera = base_from_tip · e_from_c` and the object
+//!    pose in the camera `c_from_o = base_from_camera⁻¹ · base_from_object`;
+//! 2. projection of the four target points (normalised `x, y` and depth `Z`), the target plane `(A, B, C)`, the
+//!    camera Jacobian `cVe · eJe`; a point behind the camera or outside the image (with a margin in pixels) ends the
+//!    run as **feature lost**;
+//! 3. every visual task is evaluated (`e_i`, `L_i`, `J_i`, MATH \[M42\]); when the stack is complete and the error of
+//!    every task is below the convergence threshold, the run has **converged**;
+//! 4. one controller iteration ([`StackController::step`]) gives `q̇`; explicit Euler `q ← q + Δt q̇`;
+//! 5. a joint outside `[q^min, q^max]` ends the run as **joint limit** (D11: a real robot stops at its limit), with the
+//!    joint, the iteration and the tasks stacked.
+//!
+//! The run log ([`Run`]) keeps, per iteration, `q`, `q̇`, each task's error norm, the stack, the cost and its
+//! prediction, the criteria, and the image points; and the controller's event log.
+
+use crate::avoidance::{Cost, CostError, JointLimits};
+use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
+use crate::controller::{
+    ControllerError, ControllerParameters, EventKind, StackController, StackEvent, TaskCriteria,
+};
+use crate::feature::{FeatureError, Observation};
+use crate::law::ControlLaw;
+use crate::math::{JointVector, KinematicJacobian};
+use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
+use crate::target::{RectangleTarget, TargetError, TargetPlane};
+use crate::task::{Task, TaskError, TaskValue};
+use crate::visual_task::{VisualContext, VisualTask};
+use nalgebra::Isometry3;
+
+/// Errors of the simulation (distinct from the run's outcome: a joint limit or a lost feature is an outcome, not an
+/// error).
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// A simulation parameter is out of range.
+    #[error("simulation parameter `{name}` = {value} is invalid: {expected}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// The start configuration is outside the joint limits.
+    #[error("start configuration: joint {joint} = {value} is outside [{lower}, {upper}]")]
+    StartOutsideLimits {
+        /// The joint (0-based).
+        joint: usize,
+        /// Its value.
+        value: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+    },
+    /// The robot model failed (non-finite configuration).
+    #[error(transparent)]
+    Robot(#[from] RobotError),
+    /// The camera model failed.
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    /// The target model failed.
+    #[error(transparent)]
+    Target(#[from] TargetError),
+    /// A feature is undefined on the desired or current image.
+    #[error(transparent)]
+    Feature(#[from] FeatureError),
+    /// A task failed.
+    #[error(transparent)]
+    Task(#[from] TaskError),
+    /// The controller failed.
+    #[error(transparent)]
+    Controller(#[from] ControllerError),
+    /// The joint-limit cost failed.
+    #[error(transparent)]
+    Cost(#[from] CostError),
+}
+
+/// The world: a robot with its camera, the camera's intrinsics, the target and where it stands.
+#[derive(Debug, Clone)]
+pub struct Scene<const N: usize> {
+    chain: SerialChain<N>,
+    camera: EyeInHand,
+    intrinsics: CameraIntrinsics,
+    target: RectangleTarget,
+    base_from_object: Isometry3<f64>,
+    limits: JointLimits<N>,
+}
+
+/// What the camera sees at one configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View<const N: usize> {
+    /// The four target points: normalised coordinates and depth.
+    pub points: [ImagePoint; 4],
+    /// The target plane `1/Z = A x + B y + C`.
+    pub plane: TargetPlane,
+    /// The camera Jacobian `cVe · eJe(q)` (6 × N).
+    pub camera_jacobian: KinematicJacobian<N>,
+    /// The object pose in the camera frame (ViSP `cMo`).
+    pub c_from_o: Isometry3<f64>,
+}
+
+impl<const N: usize> View<N> {
+    /// The observation of the four points with the plane model, for the features.
+    ///
+    /// # Errors
+    /// [`FeatureError`] when the points are unusable (e.g. the plane is behind the camera).
+    pub fn observation(&self) -> Result<Observation<'_>, FeatureError> {
+        Observation::new(&self.points, Some(&self.plane))
+    }
+}
+
+impl<const N: usize> Scene<N> {
+    /// A scene whose target is placed so that, at the configuration `desired_q`, the camera sees it at
+    /// `desired_camera_from_object` (ViSP `cdMo`): `base_from_object = base_from_camera(desired_q) · cdMo`. The desired
+    /// pose is then reachable by construction. `rho` is the activation ratio of the joint-limit cost (MATH \[M19\]).
+    ///
+    /// # Errors
+    /// Non-finite `desired_q`, invalid `rho` or limits.
+    pub fn with_target_seen_from(
+        chain: SerialChain<N>,
+        camera: EyeInHand,
+        intrinsics: CameraIntrinsics,
+        target: RectangleTarget,
+        desired_q: &JointVector<N>,
+        desired_camera_from_object: &Isometry3<f64>,
+        rho: f64,
+    ) -> Result<Self, SimError> {
+        let mut workspace = KinematicsWorkspace::new();
+        let state = chain.kinematics(&mut workspace, desired_q)?;
+        let base_from_object =
+            camera.base_from_camera(state.base_from_tip()) * desired_camera_from_object;
+        let limits = JointLimits::new(*chain.lower_limits(), *chain.upper_limits(), rho)?;
+        Ok(Self {
+            chain,
+            camera,
+            intrinsics,
+            target,
+            base_from_object,
+            limits,
+        })
+    }
+
+    /// The robot.
+    pub fn chain(&self) -> &SerialChain<N> {
+        &self.chain
+    }
+
+    /// The camera intrinsics.
+    pub fn intrinsics(&self) -> &CameraIntrinsics {
+        &self.intrinsics
+    }
+
+    /// The joint limits and their cost (MATH \[M19\]–\[M21\]).
+    pub fn limits(&self) -> &JointLimits<N> {
+        &self.limits
+    }
+
+    /// The target pose in the robot base frame.
+    pub fn base_from_object(&self) -> &Isometry3<f64> {
+        &self.base_from_object
+    }
+
+    /// The view of the target from the camera pose `c_from_o` (no robot involved: for desired images).
+    ///
+    /// # Errors
+    /// A point at or behind the camera, a plane through the optical centre.
+    pub fn view_from(&self, c_from_o: &Isometry3<f64>) -> Result<View<N>, SimError> {
+        let mut points = [ImagePoint::default(); 4];
+        project_points(c_from_o, self.target.points(), &mut points)?;
+        Ok(View {
+            points,
+            plane: self.target.plane_in_camera(c_from_o)?,
+            camera_jacobian: KinematicJacobian::zeros(),
+            c_from_o: *c_from_o,
+        })
+    }
+
+    /// What the camera sees at configuration `q`: points, plane, camera Jacobian. Allocation-free.
+    ///
+    /// # Errors
+    /// Non-finite `q`, a point at or behind the camera, a plane through the optical centre.
+    pub fn observe(
+        &self,
+        workspace: &mut KinematicsWorkspace<N>,
+        q: &JointVector<N>,
+    ) -> Result<View<N>, SimError> {
+        let state = self.chain.kinematics(workspace, q)?;
+        let base_from_camera = self.camera.base_from_camera(state.base_from_tip());
+        let c_from_o = base_from_camera.inverse() * self.base_from_object;
+        let mut view = self.view_from(&c_from_o)?;
+        view.camera_jacobian = self.camera.c_v_e() * state.tip_jacobian();
+        Ok(view)
+    }
+}
+
+/// Parameters of a simulation run.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimulationParameters {
+    /// The control period `Δt` (s).
+    pub period: f64,
+    /// The iteration budget.
+    pub max_iterations: usize,
+    /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task.
+    pub convergence_error: f64,
+    /// A point closer than this to the image border (px) is lost.
+    pub image_margin: f64,
+}
+
+impl Default for SimulationParameters {
+    fn default() -> Self {
+        Self {
+            period: 0.01,
+            max_iterations: 10_000,
+            convergence_error: 1e-4,
+            image_margin: 0.0,
+        }
+    }
+}
+
+impl SimulationParameters {
+    fn validate(&self) -> Result<(), SimError> {
+        let invalid = |name, value, expected| {
+            Err(SimError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if !(self.period.is_finite() && self.period > 0.0) {
+            return invalid("period", self.period, "finite and > 0");
+        }
+        if !(self.convergence_error.is_finite() && self.convergence_error > 0.0) {
+            return invalid(
+                "convergence_error",
+                self.convergence_error,
+                "finite and > 0",
+            );
+        }
+        if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
+            return invalid("image_margin", self.image_margin, "finite and ≥ 0");
+        }
+        Ok(())
+    }
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
+pub enum Outcome {
+    /// Every task stacked and achieved.
+    Converged,
+    /// A joint left its limits (D11).
+    JointLimit {
+        /// The joint (0-based).
+        joint: usize,
+        /// The tasks stacked when it happened (indices into the task list).
+        stacked: Vec<usize>,
+    },
+    /// A target point went behind the camera or out of the image.
+    FeatureLost {
+        /// The point (0-based).
+        point: usize,
+    },
+    /// The iteration budget ran out.
+    MaxIterations,
+}
+
+impl Outcome {
+    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Converged => "converged",
+            Self::JointLimit { .. } => "joint_limit",
+            Self::FeatureLost { .. } => "feature_lost",
+            Self::MaxIterations => "max_iterations",
+        }
+    }
+}
+
+/// One iteration of the run log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record<const N: usize> {
+    /// The iteration.
+    pub iteration: usize,
+    /// Its time (s).
+    pub time: f64,
+    /// The configuration.
+    pub q: JointVector<N>,
+    /// The velocity sent (zero at the last record of a run that ended before stepping).
+    pub velocity: JointVector<N>,
+    /// `‖e_i‖` for every task of the list (stacked or not).
+    pub task_errors: Vec<f64>,
+    /// The tasks stacked at this iteration.
+    pub stacked: Vec<usize>,
+    /// `h(q)` of the joint-limit cost.
+    pub cost: f64,
+    /// The controller's predicted `h(q̂)`.
+    pub predicted_cost: f64,
+    /// The criteria of the stacked tasks (empty when `∇h = 0` or without avoidance).
+    pub criteria: Vec<TaskCriteria>,
+    /// The image points (normalised).
+    pub image: [ImagePoint; 4],
+}
+
+/// A finished run: its outcome, the run log and the event log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run<const N: usize> {
+    /// How it ended.
+    pub outcome: Outcome,
+    /// The names of the tasks, by index.
+    pub task_names: Vec<String>,
+    /// One record per iteration.
+    pub records: Vec<Record<N>>,
+    /// The controller's event log.
+    pub events: Vec<StackEvent>,
+    /// The joint limits, for normalised plots and margins.
+    pub limits: JointLimits<N>,
+}
+
+impl<const N: usize> Run<N> {
+    /// The number of iterations performed (the index of the iteration at which the run ended, plus one).
+    pub fn iterations(&self) -> usize {
+        self.records.len()
+    }
+
+    /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the stack changes: the velocity sent at the iteration of a change against
+    /// the one sent at the iteration before (zero before the first iteration: the run starts at rest).
+    pub fn max_velocity_jump(&self) -> f64 {
+        let velocity_before = |k: usize| {
+            k.checked_sub(1)
+                .and_then(|i| self.records.get(i))
+                .map_or(JointVector::zeros(), |r| r.velocity)
+        };
+        self.events
+            .iter()
+            .filter_map(|e| {
+                self.records
+                    .get(e.iteration)
+                    .map(|r| (r.velocity - velocity_before(e.iteration)).norm())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// `‖[e_1; …; e_n]‖` at the last iteration.
+    pub fn final_error_norm(&self) -> f64 {
+        self.records.last().map_or(f64::NAN, |r| {
+            r.task_errors.iter().map(|e| e * e).sum::<f64>().sqrt()
+        })
+    }
+
+    /// The smallest distance to a limit over time and joints, as a fraction of the joint's range.
+    pub fn min_normalized_margin(&self) -> f64 {
+        self.records
+            .iter()
+            .map(|r| self.limits.normalized_margin(&r.q))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The names of the tasks stacked at the end.
+    pub fn stacked_at_end(&self) -> Vec<&str> {
+        self.records
+            .last()
+            .map(|r| {
+                r.stacked
+                    .iter()
+                    .map(|&i| self.task_names[i].as_str())
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// The events of one kind.
+    pub fn events_of(&self, kind: EventKind) -> impl Iterator<Item = &StackEvent> {
+        self.events.iter().filter(move |e| e.kind == kind)
+    }
+}
+
+/// How the tasks are driven in a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drive<'a> {
+    /// The control law (gains, `μ`, `κ`).
+    pub law: &'a ControlLaw,
+    /// The controller's parameters (push, removal).
+    pub controller: ControllerParameters,
+    /// Whether the joint-limit cost is given to the law and the controller (projected-gradient avoidance and
+    /// prediction); without it, `κ` has no effect and no task is ever removed.
+    pub avoid_joint_limits: bool,
+}
+
+/// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
+///
+/// # Errors
+/// Invalid parameters, a start outside the limits, failures of the models (not outcomes).
+pub fn simulate<const N: usize>(
+    scene: &Scene<N>,
+    tasks: &[VisualTask],
+    drive: Drive<'_>,
+    start: &JointVector<N>,
+    parameters: &SimulationParameters,
+) -> Result<Run<N>, SimError> {
+    parameters.validate()?;
+    if let Some(joint) = scene.limits.violated_joint(start) {
+        return Err(SimError::StartOutsideLimits {
+            joint,
+            value: start[joint],
+            lower: scene.limits.lower()[joint],
+            upper: scene.limits.upper()[joint],
+        });
+    }
+    let mut values: Vec<TaskValue<N>> = tasks
+        .iter()
+        .map(TaskValue::for_task::<VisualContext<'_, N>, _>)
+        .collect::<Result<_, _>>()?;
+    let controller_parameters = ControllerParameters {
+        removal_threshold: drive
+            .controller
+            .removal_threshold
+            .or(Some(scene.limits.default_removal_threshold())),
+        ..drive.controller
+    };
+    let mut controller = StackController::new(controller_parameters, &values)?;
+    let cost: Option<&dyn Cost<N>> = drive
+        .avoid_joint_limits
+        .then_some(&scene.limits as &dyn Cost<N>);
+    let mut workspace = KinematicsWorkspace::new();
+    let mut q = *start;
+    let mut records = Vec::with_capacity(parameters.max_iterations.min(100_000));
+    let mut outcome = Outcome::MaxIterations;
+    for iteration in 0..parameters.max_iterations {
+        let time = iteration as f64 * parameters.period;
+        let view = match scene.observe(&mut workspace, &q) {
+            Ok(view) => view,
+            Err(SimError::Camera(CameraError::PointBehindCamera { index, .. })) => {
+                outcome = Outcome::FeatureLost { point: index };
+                break;
+            }
+            Err(error) => return Err(error),
+        };
+        if let Some(point) = view.points.iter().position(|p| {
+            !scene
+                .intrinsics
+                .in_field_of_view(p, parameters.image_margin)
+        }) {
+            outcome = Outcome::FeatureLost { point };
+            break;
+        }
+        let observation = view.observation()?;
+        let context = VisualContext {
+            observation: &observation,
+            camera_jacobian: &view.camera_jacobian,
+        };
+        for (task, value) in tasks.iter().zip(values.iter_mut()) {
+            task.evaluate(&context, value)?;
+        }
+        let task_errors: Vec<f64> = values.iter().map(|v| v.error().norm()).collect();
+        let mut record = Record {
+            iteration,
+            time,
+            q,
+            velocity: JointVector::zeros(),
+            task_errors,
+            stacked: controller.stacked().to_vec(),
+            cost: scene.limits.value(&q)?,
+            predicted_cost: 0.0,
+            criteria: Vec::new(),
+            image: view.points,
+        };
+        if controller.is_complete()
+            && record
+                .task_errors
+                .iter()
+                .all(|&e| e < parameters.convergence_error)
+        {
+            records.push(record);
+            outcome = Outcome::Converged;
+            break;
+        }
+        let step = controller.step(drive.law, &values, cost, &q, iteration, time)?;
+        record.velocity = step.velocity;
+        record.predicted_cost = step.predicted_cost;
+        record.criteria = controller.criteria().to_vec();
+        q += step.velocity * parameters.period;
+        let hit = scene.limits.violated_joint(&q);
+        let stacked = record.stacked.clone();
+        records.push(record);
+        if let Some(joint) = hit {
+            outcome = Outcome::JointLimit { joint, stacked };
+            break;
+        }
+    }
+    Ok(Run {
+        outcome,
+        task_names: tasks
+            .iter()
+            .map(|t| Task::<N, VisualContext<'_, N>>::name(t).to_owned())
+            .collect(),
+        records,
+        events: controller.events().to_vec(),
+        limits: scene.limits.clone(),
+    })
+}

@@ -1,0 +1,288 @@
+//! The task stack: strict priorities by recursive null-space projection (MATH §2, \[M14\], \[M8\], (F6)–(F8), (F16)).
+//!
+//! For an ordered stack of tasks `(e_1, …, e_n)` (index 1 has the highest priority), each with its own gain, the joint
+//! velocity that realises `ė_i = −λ_i e_i` as well as the higher levels allow is built level by level:
+//!
+//! ```text
+//! [M14]  q̇_0 = 0,   P^A_0 = I_N
+//!        J̃_i  = J_i P^A_{i−1}                                    (limited Jacobian, m_i × N)
+//!        q̇_i = q̇_{i−1} + J̃_i⁺ ( −λ_i e_i − J_i q̇_{i−1} )
+//! [M8]   P^A_i = P^A_{i−1} − J̃_i⁺ J̃_i                           (Baerlocher–Boulic projector update)
+//! ```
+//!
+//! `P^A_n` is the orthogonal projector onto the kernel of the augmented Jacobian `[J_1; …; J_n]`: the directions left
+//! free by the whole stack, where avoidance acts ([`crate::law`], MATH \[M18\]). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
+//! a lower level never changes `J_k q̇` for a higher level `k` (up to the rank truncation).
+//!
+//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]); the velocity term may use
+//! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` (MATH D2). The projector is
+//! re-symmetrised after each update (MATH §2.1.3). The rank threshold of level `i` is relative to the task's own scale
+//! `‖J_i‖_F`, not to `σ_max(J̃_i)`: a level whose `J̃_i` is tiny compared with `J_i` conflicts with the higher levels
+//! (algorithmic singularity), and its tiny directions must be dropped, not inverted. Per-level [`LevelDiagnostics`] report the rank of `J̃_i`, its
+//! smallest kept singular value, and whether the level is fully achievable (`rank J̃_i = m_i`, MATH §2.1.5).
+//!
+//! ```
+//! use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
+//! use servostack::task::{TaskValue, TaskJacobian};
+//! use nalgebra::DVector;
+//!
+//! // Two 1-row tasks on 3 joints: level 1 wants q̇_0 = −0.5·0.2, level 2 wants q̇_0 + q̇_1 = −0.5·(−0.4).
+//! let t1 = TaskValue::<3>::from_parts("a", DVector::from_vec(vec![0.2]), TaskJacobian::from_row_slice(&[1.0, 0.0, 0.0]), 0.5)?;
+//! let t2 = TaskValue::<3>::from_parts("b", DVector::from_vec(vec![-0.4]), TaskJacobian::from_row_slice(&[1.0, 1.0, 0.0]), 0.5)?;
+//! let tasks = [t1, t2];
+//! let mut workspace = StackWorkspace::<3>::new(&tasks);
+//! let solution = solve_stack(&StackParameters::default(), &mut workspace, &tasks, &[0, 1])?;
+//! assert!((solution.velocity()[0] + 0.1).abs() < 1e-12);
+//! assert!((solution.velocity()[0] + solution.velocity()[1] - 0.2).abs() < 1e-12);
+//! assert_eq!(solution.levels()[1].rank, 1);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use crate::linalg::{ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
+use crate::math::{all_finite, JointMatrix, JointVector};
+use crate::task::{TaskJacobian, TaskValue};
+use nalgebra::DVector;
+
+/// Errors of the stack solve.
+#[non_exhaustive]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StackError {
+    /// The stack order names a task index that is not in the task list.
+    #[error("stack level {level} names task {task}, but only {available} tasks exist")]
+    UnknownTask {
+        /// The level (0 = highest priority).
+        level: usize,
+        /// The task index given.
+        task: usize,
+        /// The number of tasks in the list.
+        available: usize,
+    },
+    /// The task does not fit the workspace (it has more rows, or the stack more levels, than it was sized for).
+    #[error("workspace too small: {what} is {found}, capacity {capacity}")]
+    CapacityExceeded {
+        /// `"task rows"` or `"levels"`.
+        what: &'static str,
+        /// The size requested.
+        found: usize,
+        /// The capacity of the workspace.
+        capacity: usize,
+    },
+    /// A task's error or Jacobian holds a NaN or an infinity.
+    #[error("stack level {level} (task {task}): non-finite {what}")]
+    NonFiniteTask {
+        /// The level (0 = highest priority).
+        level: usize,
+        /// The task index.
+        task: usize,
+        /// `"error"` or `"jacobian"`.
+        what: &'static str,
+    },
+    /// The linear algebra failed (see the source).
+    #[error("stack level {level}: {source}")]
+    Linalg {
+        /// The level (0 = highest priority).
+        level: usize,
+        /// The underlying error.
+        source: LinalgError,
+    },
+    /// Invalid parameters.
+    #[error("invalid stack parameters: {0}")]
+    Parameters(LinalgError),
+}
+
+/// How each level is inverted (MATH §2.1, D2).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct StackParameters {
+    /// Which singular values of `J̃_i` count (relative threshold 1e−6 and an absolute floor by default).
+    pub rank_policy: RankPolicy,
+    /// The inverse of the velocity term: truncated (default) or damped least squares.
+    pub velocity_inverse: VelocityInverse,
+}
+
+impl StackParameters {
+    /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`StackError::Parameters`] for an invalid damping.
+    pub fn validate(&self) -> Result<(), StackError> {
+        self.velocity_inverse
+            .validate()
+            .map_err(StackError::Parameters)
+    }
+}
+
+/// What one level of the stack achieved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelDiagnostics {
+    /// The index of the task at this level in the task list.
+    pub task: usize,
+    /// The number of rows `m_i` of the task.
+    pub rows: usize,
+    /// The numerical rank of the limited Jacobian `J̃_i = J_i P^A_{i−1}`.
+    pub rank: usize,
+    /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0).
+    pub smallest_kept_singular_value: Option<f64>,
+    /// `true` when `rank J̃_i = m_i`: every velocity the task asks for is realisable without disturbing the higher
+    /// levels (MATH §2.1.5). A task with more rows than free joints is never fully achievable.
+    pub fully_achievable: bool,
+}
+
+/// The result of a stack solve: `q̇_n`, `P^A_n` and per-level diagnostics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StackSolution<const N: usize> {
+    velocity: JointVector<N>,
+    projector: JointMatrix<N>,
+    levels: Vec<LevelDiagnostics>,
+}
+
+impl<const N: usize> StackSolution<N> {
+    /// The stack velocity `q̇_n` of \[M14\] (m/s or rad/s per joint), without transition or avoidance terms.
+    pub fn velocity(&self) -> &JointVector<N> {
+        &self.velocity
+    }
+
+    /// The projector `P^A_n` onto the joint directions left free by the whole stack (\[M8\]).
+    pub fn projector(&self) -> &JointMatrix<N> {
+        &self.projector
+    }
+
+    /// Diagnostics, one per level, highest priority first.
+    pub fn levels(&self) -> &[LevelDiagnostics] {
+        &self.levels
+    }
+
+    /// `true` when every level is fully achievable.
+    pub fn all_achievable(&self) -> bool {
+        self.levels.iter().all(|level| level.fully_achievable)
+    }
+}
+
+/// Preallocated storage for [`solve_stack`]: sized once for the largest task and the number of tasks, it makes the
+/// solve allocation-free.
+#[derive(Debug, Clone)]
+pub struct StackWorkspace<const N: usize> {
+    limited: TaskJacobian<N>,
+    residual: DVector<f64>,
+    svd: ColumnSvd<N>,
+    step: JointVector<N>,
+    solution: StackSolution<N>,
+}
+
+impl<const N: usize> StackWorkspace<N> {
+    /// A workspace for stacks built from `tasks`: rows for the largest task, one level per task in the list.
+    pub fn new(tasks: &[TaskValue<N>]) -> Self {
+        let max_rows = tasks.iter().map(TaskValue::rows).max().unwrap_or(1);
+        Self::with_capacity(max_rows, tasks.len())
+    }
+
+    /// A workspace for tasks of at most `max_rows` rows and stacks of at most `max_levels` levels.
+    pub fn with_capacity(max_rows: usize, max_levels: usize) -> Self {
+        Self {
+            limited: TaskJacobian::zeros(max_rows.max(1)),
+            residual: DVector::zeros(max_rows.max(1)),
+            svd: ColumnSvd::default(),
+            step: JointVector::zeros(),
+            solution: StackSolution {
+                velocity: JointVector::zeros(),
+                projector: JointMatrix::identity(),
+                levels: Vec::with_capacity(max_levels),
+            },
+        }
+    }
+
+    /// The result of the last successful solve.
+    pub fn solution(&self) -> &StackSolution<N> {
+        &self.solution
+    }
+}
+
+/// Solves the stack `order` (indices into `tasks`, highest priority first) by \[M14\] and \[M8\]. Allocation-free when the
+/// workspace was sized for these tasks. An empty order gives `q̇_n = 0`, `P^A_n = I`.
+///
+/// # Errors
+/// An unknown task index, a task or stack larger than the workspace, non-finite task data, invalid parameters, or a
+/// failed decomposition. No partial result is exposed on error.
+pub fn solve_stack<'w, const N: usize>(
+    parameters: &StackParameters,
+    workspace: &'w mut StackWorkspace<N>,
+    tasks: &[TaskValue<N>],
+    order: &[usize],
+) -> Result<&'w StackSolution<N>, StackError> {
+    parameters.validate()?;
+    if order.len() > workspace.solution.levels.capacity() {
+        return Err(StackError::CapacityExceeded {
+            what: "levels",
+            found: order.len(),
+            capacity: workspace.solution.levels.capacity(),
+        });
+    }
+    let StackWorkspace {
+        limited,
+        residual,
+        svd,
+        step,
+        solution,
+    } = workspace;
+    solution.velocity.fill(0.0);
+    solution.projector.fill_with_identity();
+    solution.levels.clear();
+    for (level, &index) in order.iter().enumerate() {
+        let task = checked_task(tasks, level, index, limited.nrows())?;
+        let rows = task.rows();
+        // r = −λ_i e_i − J_i q̇_{i−1}
+        let mut r = residual.rows_mut(0, rows);
+        r.copy_from(task.error());
+        r *= -task.gain();
+        r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
+        // J̃_i = J_i P^A_{i−1}, decomposed in place into W = J̃_i V.
+        let mut w = limited.rows_mut(0, rows);
+        w.gemm(1.0, task.jacobian(), &solution.projector, 0.0);
+        svd.decompose_with_scale(&mut w, &parameters.rank_policy, task.jacobian().norm())
+            .map_err(|source| StackError::Linalg { level, source })?;
+        svd.solve(&w, &r, parameters.velocity_inverse, step)
+            .map_err(|source| StackError::Linalg { level, source })?;
+        solution.velocity += &*step;
+        svd.subtract_row_space_projector(&mut solution.projector);
+        let rank = svd.rank();
+        solution.levels.push(LevelDiagnostics {
+            task: index,
+            rows,
+            rank,
+            smallest_kept_singular_value: svd.smallest_kept(),
+            fully_achievable: rank == rows,
+        });
+    }
+    Ok(solution)
+}
+
+fn checked_task<const N: usize>(
+    tasks: &[TaskValue<N>],
+    level: usize,
+    index: usize,
+    capacity: usize,
+) -> Result<&TaskValue<N>, StackError> {
+    let task = tasks.get(index).ok_or(StackError::UnknownTask {
+        level,
+        task: index,
+        available: tasks.len(),
+    })?;
+    if task.rows() > capacity {
+        return Err(StackError::CapacityExceeded {
+            what: "task rows",
+            found: task.rows(),
+            capacity,
+        });
+    }
+    let non_finite = |what| StackError::NonFiniteTask {
+        level,
+        task: index,
+        what,
+    };
+    if !all_finite(task.error()) {
+        return Err(non_finite("error"));
+    }
+    if !all_finite(task.jacobian()) {
+        return Err(non_finite("jacobian"));
+    }
+    Ok(task)
+}

@@ -1,0 +1,239 @@
+//! Visual tasks: a visual feature, its desired value, a gain and an interaction source, giving the task function
+//! `e_i = s_i − s_i*` (MATH (F28)) and its Jacobian for an eye-in-hand camera
+//!
+//! ```text
+//! [M42]  J_i = L_{s_i} · cVe · eJe(q)          (m_i × 6)(6 × 6)(6 × N)
+//! ```
+//!
+//! A [`VisualTask`] is a [`Task`] whose context is a [`VisualContext`]: the current observation (image points, their
+//! depths or the target plane, and their moments, computed once for all tasks) and the camera Jacobian `cVe · eJe`
+//! (computed once per control period by the robot and camera modules). Evaluation writes `e_i`, `L_i` and `J_i` into
+//! the task's preallocated [`TaskValue`] without allocating.
+//!
+//! The interaction source (MATH D10) picks where `L_i` is evaluated: [`InteractionSource::Exact`] (default) and
+//! [`InteractionSource::PaperApprox`] on the current observation; [`InteractionSource::Desired`] once, at construction,
+//! on the desired observation.
+//!
+//! [`paper_tasks`] builds the paper's four tasks (centroid, diagonal angle, `a_n`, `P_x`/`P_y`, §9) and
+//! [`classical_task`] the full six-row task of the classical law (§7.7), each in one call.
+
+use crate::feature::{
+    AreaNormalization, BoxedFeature, Centroid, DiagonalAngle, Feature, FeatureError, FeatureSet,
+    InteractionSource, Observation,
+};
+use crate::math::{wrap_angle, KinematicJacobian};
+use crate::task::{InteractionMatrix, Task, TaskError, TaskValue};
+use nalgebra::DVector;
+
+/// The names of the paper's four tasks, in priority order (MATH §9): e1, e2, e3, e4.
+pub const PAPER_TASK_NAMES: [&str; 4] = ["centroid", "angle", "area", "third_order"];
+
+/// The name of the classical full task.
+pub const CLASSICAL_TASK_NAME: &str = "full";
+
+/// What a visual task reads at each control period.
+#[derive(Debug, Clone, Copy)]
+pub struct VisualContext<'a, const N: usize> {
+    /// The current observation of the target (points, depths or plane, moments).
+    pub observation: &'a Observation<'a>,
+    /// The camera Jacobian `cVe · eJe(q)` (6 × N): maps `q̇` to the camera twist `(υ, ω)` in the camera frame.
+    pub camera_jacobian: &'a KinematicJacobian<N>,
+}
+
+/// A visual task: `e = s − s*` with angle rows wrapped into `(−π, π]` (D8), `J = L cVe eJe` \[M42\].
+pub struct VisualTask {
+    name: String,
+    feature: BoxedFeature,
+    desired: DVector<f64>,
+    gain: f64,
+    source: InteractionSource,
+    desired_interaction: Option<InteractionMatrix>,
+}
+
+impl std::fmt::Debug for VisualTask {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VisualTask")
+            .field("name", &self.name)
+            .field("feature", &self.feature.name())
+            .field("desired", &self.desired.as_slice())
+            .field("gain", &self.gain)
+            .field("source", &self.source)
+            .finish()
+    }
+}
+
+fn feature_error(name: &str, source: FeatureError) -> TaskError {
+    TaskError::Evaluation {
+        name: name.into(),
+        reason: source.to_string(),
+    }
+}
+
+impl VisualTask {
+    /// A task driving `feature` to its value in the `desired` observation, with gain `gain` (s⁻¹) and interaction
+    /// source `source`. For [`InteractionSource::Desired`], `L` is computed here, once, on `desired`.
+    ///
+    /// # Errors
+    /// [`TaskError::InvalidGain`]; [`TaskError::Evaluation`] when the feature is undefined on the desired observation.
+    pub fn new(
+        name: &str,
+        feature: BoxedFeature,
+        desired: &Observation<'_>,
+        gain: f64,
+        source: InteractionSource,
+    ) -> Result<Self, TaskError> {
+        let mut desired_value = DVector::zeros(feature.dim());
+        feature
+            .value(desired, desired_value.as_mut_slice())
+            .map_err(|e| feature_error(name, e))?;
+        let desired_interaction = match source {
+            InteractionSource::Desired => {
+                let mut l = InteractionMatrix::zeros(feature.dim());
+                feature
+                    .interaction(
+                        desired,
+                        InteractionSource::Exact,
+                        l.rows_mut(0, feature.dim()),
+                    )
+                    .map_err(|e| feature_error(name, e))?;
+                Some(l)
+            }
+            InteractionSource::Exact | InteractionSource::PaperApprox => None,
+        };
+        // Validates the gain and the row count.
+        TaskValue::<0>::new(name, feature.dim(), gain)?;
+        Ok(Self {
+            name: name.into(),
+            feature,
+            desired: desired_value,
+            gain,
+            source,
+            desired_interaction,
+        })
+    }
+
+    /// The desired value `s*`.
+    pub fn desired_value(&self) -> &DVector<f64> {
+        &self.desired
+    }
+
+    /// The feature.
+    pub fn feature(&self) -> &dyn Feature {
+        self.feature.as_ref()
+    }
+
+    /// The interaction source.
+    pub fn source(&self) -> InteractionSource {
+        self.source
+    }
+}
+
+impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn rows(&self) -> usize {
+        self.feature.dim()
+    }
+
+    fn gain(&self) -> f64 {
+        self.gain
+    }
+
+    fn evaluate(
+        &self,
+        context: &VisualContext<'a, N>,
+        out: &mut TaskValue<N>,
+    ) -> Result<(), TaskError> {
+        let rows = self.feature.dim();
+        if out.rows() != rows {
+            return Err(TaskError::DimensionMismatch {
+                name: self.name.clone(),
+                what: "storage",
+                expected: rows,
+                found: out.rows(),
+            });
+        }
+        let (error, jacobian, interaction) = out.sensor_parts_mut();
+        // e = s − s*, angles wrapped (F28, D8). `s` is checked finite by `Feature::value`, `s*` at construction.
+        self.feature
+            .value(context.observation, error.as_mut_slice())
+            .map_err(|e| feature_error(&self.name, e))?;
+        for (row, (e, s_star)) in error.iter_mut().zip(self.desired.iter()).enumerate() {
+            let difference = *e - s_star;
+            *e = if self.feature.is_angle(row) {
+                wrap_angle(difference)
+            } else {
+                difference
+            };
+        }
+        match &self.desired_interaction {
+            Some(desired) => interaction.copy_from(desired),
+            None => self
+                .feature
+                .interaction(
+                    context.observation,
+                    self.source,
+                    interaction.rows_mut(0, rows),
+                )
+                .map_err(|e| feature_error(&self.name, e))?,
+        }
+        // J = L (cVe eJe)   [M42]
+        jacobian.gemm(1.0, interaction, context.camera_jacobian, 0.0);
+        Ok(())
+    }
+}
+
+/// The paper's four tasks in priority order (MATH §9): e1 centroid (2 rows, [`Centroid`] with a-priori depth
+/// `a_priori_depth` for [`InteractionSource::PaperApprox`]), e2 diagonal angle from point 0 to point 2 (1 row, D8),
+/// e3 `a_n` (1 row, with desired depth `desired_depth`, MATH \[M37\]), e4 `P_x, P_y` (2 rows, \[M40\]). Named as
+/// [`PAPER_TASK_NAMES`]. `gains` are the `λ_i` (s⁻¹).
+///
+/// # Errors
+/// Invalid depths or gains, or features undefined on the desired observation (e.g. a square target seen head-on, D9).
+pub fn paper_tasks(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+    gains: [f64; 4],
+    source: InteractionSource,
+) -> Result<Vec<VisualTask>, TaskError> {
+    let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
+    FeatureSet::paper_tasks(centroid, angle, normalization)
+        .into_iter()
+        .zip(PAPER_TASK_NAMES)
+        .zip(gains)
+        .map(|((set, name), gain)| VisualTask::new(name, Box::new(set), desired, gain, source))
+        .collect()
+}
+
+/// The classical task (MATH §7.7): `s = (x_g, y_g, α, a_n, P_x, P_y)` in one level, named
+/// [`CLASSICAL_TASK_NAME`], with gain `gain` (s⁻¹).
+///
+/// # Errors
+/// As [`paper_tasks`].
+pub fn classical_task(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+    gain: f64,
+    source: InteractionSource,
+) -> Result<VisualTask, TaskError> {
+    let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
+    let set = FeatureSet::paper_full(centroid, angle, normalization);
+    VisualTask::new(CLASSICAL_TASK_NAME, Box::new(set), desired, gain, source)
+}
+
+fn paper_features(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+) -> Result<(Centroid, DiagonalAngle, AreaNormalization), TaskError> {
+    let error = |e| feature_error("paper features", e);
+    Ok((
+        Centroid::new(a_priori_depth).map_err(error)?,
+        DiagonalAngle::default(),
+        AreaNormalization::from_desired(desired, desired_depth).map_err(error)?,
+    ))
+}

@@ -1,0 +1,79 @@
+//! The steady-state control step allocates nothing on the heap (DESIGN principle 2).
+
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
+
+use counting_allocator::allocations_during;
+use servostack::avoidance::{Cost, JointLimits};
+use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
+use servostack::math::JointVector;
+use servostack::task::{LinearTask, Task, TaskJacobian, TaskValue};
+
+#[test]
+fn the_counter_sees_allocations() {
+    assert!(allocations_during(|| drop(std::hint::black_box(vec![1u8; 16]))) >= 1);
+}
+
+/// Four levels (2, 1, 1, 2 rows) on N = 6 with joint-limit avoidance, the stack changing along the way: after the first
+/// steps, evaluating the tasks and running the control step allocates nothing.
+#[test]
+fn steady_state_stack_solve_with_avoidance_allocates_nothing() {
+    let rows = [2usize, 1, 1, 2];
+    let tasks: Vec<LinearTask<6>> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, &m)| {
+            let matrix =
+                TaskJacobian::<6>::from_fn(m, |r, c| ((7 * i + 3 * r + c) as f64 * 0.61).sin());
+            let target = JointVector::<6>::from_fn(|c, _| 0.1 * (c as f64) - 0.2);
+            LinearTask::new(&format!("t{i}"), matrix, target, 0.8).unwrap()
+        })
+        .collect();
+    let mut values: Vec<TaskValue<6>> = tasks
+        .iter()
+        .map(|t| TaskValue::for_task(t).unwrap())
+        .collect();
+    let limits =
+        JointLimits::new(JointVector::repeat(-0.5), JointVector::repeat(0.5), 0.1).unwrap();
+    let law = ControlLaw::with_default_transition(&values, 0.5).unwrap();
+    let mut workspace = ControlWorkspace::new(&values);
+    let mut order: Vec<usize> = Vec::with_capacity(tasks.len());
+    let mut q = JointVector::<6>::from_fn(|c, _| 0.38 - 0.15 * c as f64);
+    let dt = 0.01;
+    let mut run = |from: usize, to: usize, order: &mut Vec<usize>| {
+        for step in from..to {
+            let mut change = StackChange::Unchanged;
+            if step % 50 == 0 && step / 50 < tasks.len() {
+                order.push(step / 50);
+                change = StackChange::Changed;
+            }
+            if step == 260 {
+                order.remove(2); // a removal, as the stack controller does
+                change = StackChange::Changed;
+            }
+            for (task, value) in tasks.iter().zip(values.iter_mut()) {
+                task.evaluate(&q, value).unwrap();
+            }
+            let cost: Option<&dyn Cost<6>> = Some(&limits);
+            let out = control_step(
+                &law,
+                &mut workspace,
+                &values,
+                order,
+                cost,
+                &q,
+                step as f64 * dt,
+                change,
+            )
+            .unwrap();
+            q += out.velocity() * dt;
+        }
+    };
+    run(0, 5, &mut order); // warm-up
+    let allocations = allocations_during(|| run(5, 1500, &mut order));
+    assert_eq!(allocations, 0);
+    assert_eq!(order, vec![0, 1, 3]);
+    // The run really servoed: the stacked linear tasks (all zero at the common target) converged.
+    let final_error: f64 = order.iter().map(|&i| values[i].error().norm()).sum();
+    assert!(final_error < 1e-3, "final error {final_error}");
+}

@@ -1,0 +1,226 @@
+//! The stack controller on synthetic joint-space tasks (MATH §6, D3–D7): the task that drives a joint into its limit is
+//! the one removed, the limit is not hit, the task comes back, and the velocity is continuous at every event.
+
+use servostack::avoidance::{Cost, JointLimits};
+use servostack::controller::{
+    ControllerError, ControllerParameters, EventKind, RemovalCriterion, StackController,
+};
+use servostack::law::ControlLaw;
+use servostack::linalg::{null_space_projector, RankPolicy};
+use servostack::math::JointVector;
+use servostack::task::{LinearTask, Task, TaskJacobian, TaskValue};
+
+/// Three 1-row tasks on 3 joints: t0 holds joint 2 at 0, t1 drives joint 0 to 1.05 (beyond its hard limit 1), t2
+/// drives joint 1 to 0.3.
+fn tasks() -> Vec<LinearTask<3>> {
+    let row = |c: usize| TaskJacobian::<3>::from_fn(1, |_, k| if k == c { 1.0 } else { 0.0 });
+    vec![
+        LinearTask::new("hold", row(2), JointVector::zeros(), 1.0).unwrap(),
+        LinearTask::new("reach", row(0), JointVector::<3>::new(1.05, 0.0, 0.0), 1.0).unwrap(),
+        LinearTask::new("side", row(1), JointVector::<3>::new(0.0, 0.3, 0.0), 1.0).unwrap(),
+    ]
+}
+
+struct Run {
+    hit: Option<(usize, usize)>,
+    events: Vec<(usize, EventKind, usize)>,
+    max_jump: f64,
+    first_removal_criteria: Vec<(usize, f64)>,
+}
+
+fn run(parameters: ControllerParameters, kappa: f64) -> Run {
+    let tasks = tasks();
+    let mut values: Vec<TaskValue<3>> = tasks
+        .iter()
+        .map(|t| TaskValue::for_task(t).unwrap())
+        .collect();
+    let limits =
+        JointLimits::new(JointVector::repeat(-1.0), JointVector::repeat(1.0), 0.1).unwrap();
+    let parameters = ControllerParameters {
+        removal_threshold: Some(limits.default_removal_threshold()),
+        ..parameters
+    };
+    let law = ControlLaw::with_default_transition(&values, kappa).unwrap();
+    let mut controller = StackController::new(parameters, &values).unwrap();
+    let cost: Option<&dyn Cost<3>> = Some(&limits);
+    let (dt, mut q) = (0.01, JointVector::<3>::new(0.2, -0.2, 0.1));
+    let mut previous = JointVector::<3>::zeros();
+    let mut max_jump = 0.0f64;
+    let mut changed = true; // the first iteration is a change (the first push)
+    let mut hit = None;
+    for iteration in 0..4000 {
+        for (task, value) in tasks.iter().zip(values.iter_mut()) {
+            task.evaluate(&q, value).unwrap();
+        }
+        let step = controller
+            .step(&law, &values, cost, &q, iteration, iteration as f64 * dt)
+            .unwrap();
+        if changed {
+            max_jump = max_jump.max((step.velocity - previous).norm());
+        }
+        changed = step.event.is_some();
+        previous = step.velocity;
+        q += step.velocity * dt;
+        if let Some(joint) = limits.violated_joint(&q) {
+            hit = Some((joint, iteration));
+            break;
+        }
+    }
+    let first_removal_criteria = controller
+        .events()
+        .iter()
+        .find_map(|e| e.removal.as_ref())
+        .map(|r| r.criteria.iter().map(|c| (c.task, c.combined)).collect())
+        .unwrap_or_default();
+    Run {
+        hit,
+        events: controller
+            .events()
+            .iter()
+            .map(|e| (e.iteration, e.kind, e.task))
+            .collect(),
+        max_jump,
+        first_removal_criteria,
+    }
+}
+
+#[test]
+fn push_only_with_avoidance_hits_the_limit() {
+    let run = run(
+        ControllerParameters {
+            allow_removal: false,
+            ..Default::default()
+        },
+        1.0,
+    );
+    assert_eq!(run.hit.map(|(joint, _)| joint), Some(0));
+    assert!(run
+        .events
+        .iter()
+        .all(|&(_, kind, _)| kind == EventKind::Push));
+}
+
+#[test]
+fn controller_removes_the_blocking_task_and_puts_it_back() {
+    let run = run(ControllerParameters::default(), 1.0);
+    assert_eq!(run.hit, None, "events: {:?}", run.events);
+    let removals: Vec<usize> = run
+        .events
+        .iter()
+        .filter(|e| e.1 == EventKind::Remove)
+        .map(|e| e.2)
+        .collect();
+    assert!(!removals.is_empty(), "no removal: {:?}", run.events);
+    assert!(
+        removals.iter().all(|&task| task == 1),
+        "removed {removals:?}"
+    );
+    assert!(run
+        .events
+        .iter()
+        .any(|&(_, kind, task)| kind == EventKind::Reinsert && task == 1));
+    // The removed task scored highest: its motion is aligned with ∇h (joint 0 upwards), the others are orthogonal.
+    let best = run
+        .first_removal_criteria
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    assert_eq!(best.0, 1);
+    assert!(run.max_jump < 1e-12, "velocity jump {:e}", run.max_jump);
+}
+
+#[test]
+fn every_criterion_picks_the_blocking_task() {
+    for criterion in [
+        RemovalCriterion::NormalizedDirection,
+        RemovalCriterion::KernelProjection,
+    ] {
+        let run = run(
+            ControllerParameters {
+                criterion,
+                ..Default::default()
+            },
+            1.0,
+        );
+        assert_eq!(run.hit, None);
+        let first_removal = run
+            .events
+            .iter()
+            .find(|e| e.1 == EventKind::Remove)
+            .unwrap();
+        assert_eq!(first_removal.2, 1, "{criterion:?}");
+    }
+}
+
+/// The criteria against independent computations: `C2_i = ‖(I − J_i⁺J_i) g‖` from the kernel projector, and
+/// `C1'_i = −(J_i⁺ e_i)ᵀ g / ‖J_i⁺ e_i‖` for a task with a non-trivial Jacobian.
+#[test]
+fn criteria_match_their_definitions() {
+    let j = TaskJacobian::<3>::from_row_slice(&[1.0, 2.0, 0.5, 0.0, 1.0, -1.0]);
+    let task =
+        LinearTask::new("two", j.clone(), JointVector::<3>::new(0.3, -0.2, 0.1), 1.0).unwrap();
+    let mut value = TaskValue::for_task(&task).unwrap();
+    let q = JointVector::<3>::new(0.95, -0.93, 0.0); // two joints in their activation bands
+    task.evaluate(&q, &mut value).unwrap();
+    let values = [value];
+    let limits =
+        JointLimits::new(JointVector::repeat(-1.0), JointVector::repeat(1.0), 0.1).unwrap();
+    let law = ControlLaw::new(10.0, 0.5).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    controller
+        .step(&law, &values, Some(&limits as &dyn Cost<3>), &q, 0, 0.0)
+        .unwrap();
+    let criteria = controller.criteria()[0];
+    let mut g = JointVector::<3>::zeros();
+    limits.value_and_gradient(&q, &mut g).unwrap();
+    let mut work = j.clone();
+    let kernel = null_space_projector(&j, &mut work, &RankPolicy::default()).unwrap();
+    assert!((criteria.c2 - (kernel * g).norm()).abs() < 1e-12);
+    assert!((criteria.c2.powi(2) + criteria.c2_prime.powi(2) - g.norm_squared()).abs() < 1e-14);
+    let pinv = servostack::linalg::pseudo_inverse(&j, &RankPolicy::default()).unwrap();
+    let direction = pinv * values[0].error();
+    assert!((criteria.c1 + direction.dot(&g)).abs() < 1e-12);
+    assert!((criteria.c1_normalized - criteria.c1 / direction.norm()).abs() < 1e-12);
+    assert!(
+        (criteria.combined - (criteria.c1_normalized + criteria.c2_prime) / g.norm()).abs() < 1e-12
+    );
+}
+
+#[test]
+fn invalid_parameters_and_task_count() {
+    let values = [TaskValue::<3>::new("t", 1, 1.0).unwrap()];
+    for parameters in [
+        ControllerParameters {
+            settle_velocity: 0.0,
+            ..Default::default()
+        },
+        ControllerParameters {
+            prediction_horizon: -0.1,
+            ..Default::default()
+        },
+        ControllerParameters {
+            removal_threshold: Some(f64::NAN),
+            ..Default::default()
+        },
+        ControllerParameters {
+            settle_transitions: f64::INFINITY,
+            ..Default::default()
+        },
+    ] {
+        assert!(matches!(
+            StackController::new(parameters, &values),
+            Err(ControllerError::InvalidParameter { .. })
+        ));
+    }
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    let law = ControlLaw::new(1.0, 0.0).unwrap();
+    assert_eq!(
+        controller
+            .step(&law, &[], None, &JointVector::zeros(), 0, 0.0)
+            .unwrap_err(),
+        ControllerError::TaskCount {
+            expected: 1,
+            found: 0
+        }
+    );
+}

@@ -1,0 +1,334 @@
+//! Properties of the task stack, the continuity term and the projected-gradient avoidance on random stacks
+//! (MATH \[M8\], \[M14\], \[M15\]/D1, \[M18\]), for N = 6 and N = 7.
+
+use nalgebra::{DMatrix, DVector, Dyn, OMatrix};
+use proptest::prelude::*;
+use servostack::avoidance::{Cost, JointLimits};
+use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
+use servostack::math::{JointMatrix, JointVector};
+use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
+use servostack::task::{TaskJacobian, TaskValue};
+
+/// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2].
+fn random_tasks<const N: usize>(data: &[f64], rows: &[usize]) -> Vec<TaskValue<N>> {
+    let mut cursor = data.iter().copied().cycle();
+    rows.iter()
+        .enumerate()
+        .map(|(i, &m)| {
+            let jacobian = TaskJacobian::<N>::from_fn(m, |_, _| cursor.next().unwrap());
+            let error = DVector::from_fn(m, |_, _| cursor.next().unwrap());
+            let gain = 1.1 + 0.9 * cursor.next().unwrap();
+            TaskValue::from_parts(&format!("t{i}"), error, jacobian, gain).unwrap()
+        })
+        .collect()
+}
+
+/// The augmented Jacobian `[J_1; …; J_k]` of the first `k` tasks, as a dense matrix.
+fn augmented<const N: usize>(tasks: &[TaskValue<N>], k: usize) -> DMatrix<f64> {
+    let rows: usize = tasks[..k].iter().map(TaskValue::rows).sum();
+    let mut out = DMatrix::zeros(rows, N);
+    let mut row = 0;
+    for task in &tasks[..k] {
+        out.view_mut((row, 0), (task.rows(), N))
+            .copy_from(task.jacobian());
+        row += task.rows();
+    }
+    out
+}
+
+/// Rank by nalgebra's own SVD with the relative rule, an implementation independent of servostack's Jacobi SVD.
+fn reference_rank(a: &DMatrix<f64>) -> usize {
+    if a.nrows() == 0 {
+        return 0;
+    }
+    let sv = a.clone().svd(false, false).singular_values;
+    let tol = 1e-6 * sv.max();
+    sv.iter().filter(|&&s| s > tol.max(1e-12)).count()
+}
+
+/// `I − J⁺J` by nalgebra's SVD pseudo-inverse.
+fn reference_projector<const N: usize>(a: &DMatrix<f64>) -> DMatrix<f64> {
+    if a.nrows() == 0 {
+        return DMatrix::identity(N, N);
+    }
+    let svd = a.clone().svd(true, true);
+    let tol = 1e-6 * svd.singular_values.max();
+    let pinv = svd.pseudo_inverse(tol.max(1e-12)).unwrap();
+    DMatrix::identity(N, N) - pinv * a
+}
+
+fn to_dense<const N: usize>(p: &JointMatrix<N>) -> DMatrix<f64> {
+    DMatrix::from_iterator(N, N, p.iter().copied())
+}
+
+fn solve<const N: usize>(
+    tasks: &[TaskValue<N>],
+    order: &[usize],
+) -> (JointVector<N>, JointMatrix<N>, Vec<usize>) {
+    let mut ws = StackWorkspace::new(tasks);
+    let solution = solve_stack(&StackParameters::default(), &mut ws, tasks, order).unwrap();
+    let ranks = solution.levels().iter().map(|l| l.rank).collect();
+    (*solution.velocity(), *solution.projector(), ranks)
+}
+
+/// \[M8\] equals `I − J^A⁺ J^A` at every level; the levels' ranks add up as the augmented ranks do.
+fn projector_recursion_is_exact<const N: usize>(
+    data: &[f64],
+    rows: &[usize],
+) -> Result<(), TestCaseError> {
+    let tasks = random_tasks::<N>(data, rows);
+    for k in 0..=tasks.len() {
+        let order: Vec<usize> = (0..k).collect();
+        let (_, projector, ranks) = solve(&tasks, &order);
+        let reference = reference_projector::<N>(&augmented(&tasks, k));
+        let diff = (to_dense(&projector) - reference).amax();
+        prop_assert!(diff < 1e-10, "level {k}: |P − P_ref| = {diff:e}");
+        prop_assert!((projector * projector - projector).amax() < 1e-10);
+        prop_assert_eq!(projector, projector.transpose());
+        prop_assert_eq!(
+            ranks.iter().sum::<usize>(),
+            reference_rank(&augmented(&tasks, k))
+        );
+    }
+    Ok(())
+}
+
+/// Adding a lower level leaves `J_i q̇` unchanged for every higher level; compatible levels are achieved exactly.
+fn lower_levels_never_disturb_higher<const N: usize>(
+    data: &[f64],
+    rows: &[usize],
+) -> Result<(), TestCaseError> {
+    let tasks = random_tasks::<N>(data, rows);
+    let total: usize = rows.iter().sum();
+    let mut previous: Option<JointVector<N>> = None;
+    for k in 1..=tasks.len() {
+        let order: Vec<usize> = (0..k).collect();
+        let (velocity, _, _) = solve(&tasks, &order);
+        prop_assert!(velocity.iter().all(|v| v.is_finite()));
+        if let Some(before) = previous {
+            // Exact in exact arithmetic; in floating point the residue scales with the size of the new level's step.
+            let step = (velocity - before).norm();
+            for task in &tasks[..k - 1] {
+                let change = (task.jacobian() * (velocity - before)).amax();
+                prop_assert!(
+                    change < 1e-10 * step.max(1.0),
+                    "higher task disturbed by {change:e} (step {step:e})"
+                );
+            }
+        }
+        if total <= N {
+            // Random rows with Σm ≤ N are independent (almost surely): every task is realised exactly.
+            for task in &tasks[..k] {
+                let achieved = task.jacobian() * velocity + task.error() * task.gain();
+                prop_assert!(
+                    achieved.amax() < 1e-9,
+                    "task not achieved: {:e}",
+                    achieved.amax()
+                );
+            }
+        }
+        previous = Some(velocity);
+    }
+    Ok(())
+}
+
+fn data(len: usize) -> impl Strategy<Value = Vec<f64>> {
+    proptest::collection::vec(-1.0..1.0f64, len)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn projector_recursion_n6(d in data(120)) {
+        projector_recursion_is_exact::<6>(&d, &[2, 1, 1, 2])?;
+        projector_recursion_is_exact::<6>(&d, &[8, 2])?;
+        projector_recursion_is_exact::<6>(&d, &[3, 4, 2])?;
+    }
+
+    #[test]
+    fn projector_recursion_n7(d in data(120)) {
+        projector_recursion_is_exact::<7>(&d, &[2, 1, 1, 2])?;
+        projector_recursion_is_exact::<7>(&d, &[8, 1])?;
+    }
+
+    #[test]
+    fn priority_n6(d in data(120)) {
+        lower_levels_never_disturb_higher::<6>(&d, &[2, 1, 1, 2])?;
+        lower_levels_never_disturb_higher::<6>(&d, &[2, 3, 2, 4])?;
+    }
+
+    #[test]
+    fn priority_n7(d in data(120)) {
+        lower_levels_never_disturb_higher::<7>(&d, &[2, 1, 1, 2, 1])?;
+        lower_levels_never_disturb_higher::<7>(&d, &[8, 2])?;
+    }
+
+    /// Conflicting stacks: level 2 repeats a combination of level 1's rows plus one new row, level 3 lies entirely in
+    /// the row space of levels 1–2. Ranks must be (2, 1, 0), the velocity finite, and level 1 still exact.
+    #[test]
+    fn conflicting_stack_has_right_ranks(d in data(60), mix in data(4)) {
+        let base = random_tasks::<6>(&d, &[2, 1]);
+        let j1 = base[0].jacobian().clone();
+        let fresh = base[1].jacobian().clone();
+        let mut j2 = TaskJacobian::<6>::zeros(2);
+        j2.row_mut(0).copy_from(&(j1.row(0) * mix[0] + j1.row(1) * mix[1]));
+        j2.row_mut(1).copy_from(&fresh.row(0));
+        let mut j3 = TaskJacobian::<6>::zeros(1);
+        j3.row_mut(0).copy_from(&(j1.row(0) * mix[2] + fresh.row(0) * mix[3]));
+        let tasks = vec![
+            base[0].clone(),
+            TaskValue::from_parts("t2", DVector::from_vec(vec![0.3, -0.2]), j2, 1.0).unwrap(),
+            TaskValue::from_parts("t3", DVector::from_vec(vec![0.5]), j3, 1.0).unwrap(),
+        ];
+        let mut ws = StackWorkspace::new(&tasks);
+        let solution = solve_stack(&StackParameters::default(), &mut ws, &tasks, &[0, 1, 2]).unwrap();
+        let ranks: Vec<usize> = solution.levels().iter().map(|l| l.rank).collect();
+        prop_assert_eq!(ranks, vec![2, 1, 0]);
+        prop_assert!(solution.levels()[0].fully_achievable);
+        prop_assert!(!solution.levels()[1].fully_achievable);
+        prop_assert!(!solution.levels()[2].fully_achievable);
+        prop_assert!(solution.velocity().iter().all(|v| v.is_finite()));
+        let level1 = tasks[0].jacobian() * solution.velocity() + tasks[0].error() * tasks[0].gain();
+        prop_assert!(level1.amax() < 1e-9);
+    }
+}
+
+/// Limits around `center` such that every joint sits in an activation band (upper or lower, alternating).
+fn active_limits<const N: usize>(center: &JointVector<N>) -> JointLimits<N> {
+    let offset = JointVector::<N>::from_fn(|i, _| if i % 2 == 0 { 0.85 } else { 0.15 });
+    JointLimits::new(
+        center - offset,
+        center - offset + JointVector::repeat(1.0),
+        0.3,
+    )
+    .unwrap()
+}
+
+/// A random sequence of pushes and removals while integrating `q`. At every change, `q̇(τ⁺) = q̇(τ⁻)`.
+fn continuity_at_every_change<const N: usize>(
+    d: &[f64],
+    rows: &[usize],
+    switches: &[(usize, bool)],
+    with_avoidance: bool,
+) -> Result<(), TestCaseError> {
+    let tasks = random_tasks::<N>(d, rows);
+    let limits = active_limits(&JointVector::<N>::zeros());
+    let cost: Option<&dyn Cost<N>> = if with_avoidance { Some(&limits) } else { None };
+    let law = ControlLaw::with_default_transition(&tasks, 0.8).unwrap();
+    let mut ws = ControlWorkspace::new(&tasks);
+    let dt = 0.01;
+    let mut q = JointVector::<N>::zeros();
+    let mut order: Vec<usize> = Vec::with_capacity(tasks.len());
+    let mut previous = JointVector::<N>::zeros();
+    let mut changes = 0;
+    for step in 0..400usize {
+        let time = step as f64 * dt;
+        let mut change = if step == 0 {
+            StackChange::Changed
+        } else {
+            StackChange::Unchanged
+        };
+        // Two pushes at fixed steps guarantee changes on top of the random ones.
+        let forced = (step == 40 || step == 80).then_some(true);
+        let random = switches
+            .iter()
+            .find(|(at, _)| *at == step)
+            .map(|&(_, push)| push);
+        if let Some(push) = forced.or(random) {
+            if push && order.len() < tasks.len() {
+                order.push(order.len());
+                change = StackChange::Changed;
+            } else if !push && !order.is_empty() {
+                order.remove(step % order.len());
+                change = StackChange::Changed;
+            }
+        }
+        let out = control_step(&law, &mut ws, &tasks, &order, cost, &q, time, change).unwrap();
+        let velocity = *out.velocity();
+        prop_assert!(velocity.iter().all(|v| v.is_finite()));
+        if change == StackChange::Changed {
+            changes += 1;
+            let jump = (velocity - previous).norm();
+            prop_assert!(jump <= 1e-12, "jump {jump:e} at step {step}");
+        }
+        q += velocity * dt;
+        previous = velocity;
+    }
+    prop_assert!(changes >= 3);
+    Ok(())
+}
+
+fn switch_times() -> impl Strategy<Value = Vec<(usize, bool)>> {
+    proptest::collection::vec((1usize..400, proptest::bool::weighted(0.65)), 3..10)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn continuity_n6(d in data(120), switches in switch_times(), with_avoidance: bool) {
+        continuity_at_every_change::<6>(&d, &[2, 1, 1, 2], &switches, with_avoidance)?;
+    }
+
+    #[test]
+    fn continuity_n7(d in data(120), switches in switch_times(), with_avoidance: bool) {
+        continuity_at_every_change::<7>(&d, &[2, 1, 8, 2], &switches, with_avoidance)?;
+    }
+
+    /// The avoidance term lives in the kernel of every stacked task: `J_i P^A_n ∇h = 0`.
+    #[test]
+    fn avoidance_leaves_stacked_tasks_untouched(d in data(120), s in data(7)) {
+        let tasks = random_tasks::<7>(&d, &[2, 1, 1]);
+        let q = JointVector::<7>::from_column_slice(&s) * 0.1; // inside every activation band
+        let limits = active_limits(&JointVector::<7>::zeros());
+        let mut gradient = JointVector::<7>::zeros();
+        limits.value_and_gradient(&q, &mut gradient).unwrap();
+        prop_assert!(gradient.norm() > 0.0);
+        let (_, projector, _) = solve(&tasks, &[0, 1, 2]);
+        for task in &tasks {
+            let disturbance = (task.jacobian() * projector * gradient).amax();
+            prop_assert!(disturbance < 1e-12, "J P ∇h = {disturbance:e}");
+        }
+    }
+}
+
+/// After a switch with a constant law, `q̇(t) − u = e^{−μ(t−τ)} (q̇(τ⁻) − u(τ))`.
+#[test]
+fn transition_decays_exponentially() {
+    let j = OMatrix::<f64, Dyn, nalgebra::Const<6>>::from_fn(2, |i, k| ((i * 6 + k) as f64).cos());
+    let tasks = [TaskValue::from_parts("c", DVector::from_vec(vec![0.4, -0.1]), j, 0.5).unwrap()];
+    let law = ControlLaw::new(5.0, 0.0).unwrap();
+    let mut ws = ControlWorkspace::new(&tasks);
+    let q = JointVector::<6>::zeros();
+    let kick = JointVector::<6>::from_fn(|i, _| 0.1 * i as f64 - 0.2);
+    ws.reset(&kick);
+    let start = 1.5;
+    control_step(
+        &law,
+        &mut ws,
+        &tasks,
+        &[0],
+        None,
+        &q,
+        start,
+        StackChange::Changed,
+    )
+    .unwrap();
+    for dt in [0.01, 0.1, 0.3, 1.0] {
+        let out = control_step(
+            &law,
+            &mut ws,
+            &tasks,
+            &[0],
+            None,
+            &q,
+            start + dt,
+            StackChange::Unchanged,
+        )
+        .unwrap();
+        let expected = (kick - out.law()) * (-5.0 * dt).exp();
+        assert!((out.velocity() - out.law() - expected).amax() < 1e-14);
+        assert!((out.decay() - (-5.0 * dt).exp()).abs() < 1e-15);
+    }
+}
