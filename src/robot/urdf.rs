@@ -234,16 +234,16 @@ fn joint_limits(joint: &urdf_rs::Joint, kind: JointKind) -> Result<(f64, f64), R
             values: vec![lower, upper],
         });
     }
-    let missing = RobotError::MissingLimits {
-        joint: joint.name.clone(),
-        lower,
-        upper,
-    };
+    let joint = joint.name.clone();
     if lower.is_infinite() || upper.is_infinite() || (lower == 0.0 && upper == 0.0) {
-        Err(missing)
+        Err(RobotError::MissingLimits {
+            joint,
+            lower,
+            upper,
+        })
     } else if lower >= upper {
         Err(RobotError::InvalidLimits {
-            joint: joint.name.clone(),
+            joint,
             lower,
             upper,
         })
