@@ -222,7 +222,7 @@ pub(crate) fn is_finite_pose(pose: &Isometry3<f64>) -> bool {
 }
 
 /// An eye-in-hand camera: rigidly mounted on the end effector at `e_from_c` (ViSP `eMc`), with its twist transform
-/// `c_v_e = twist_transform(e_from_c⁻¹)` (ViSP `cVe`, MATH [M43]) computed once.
+/// `c_v_e = twist_transform(e_from_c⁻¹)` (ViSP `cVe`, MATH \[M43\]) computed once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EyeInHand {
     e_from_c: Isometry3<f64>,
@@ -252,7 +252,7 @@ impl EyeInHand {
         &self.e_from_c
     }
 
-    /// `c_v_e` (ViSP `cVe`, MATH [M43]): maps an end-effector twist in `e` to the camera twist in `c`.
+    /// `c_v_e` (ViSP `cVe`, MATH \[M43\]): maps an end-effector twist in `e` to the camera twist in `c`.
     pub fn c_v_e(&self) -> &TwistTransform {
         &self.c_v_e
     }
@@ -262,7 +262,7 @@ impl EyeInHand {
         base_from_tip * self.e_from_c
     }
 
-    /// The camera Jacobian `cVe · eJe` (MATH [M42] without the interaction matrix): maps `q̇` to the camera twist
+    /// The camera Jacobian `cVe · eJe` (MATH \[M42\] without the interaction matrix): maps `q̇` to the camera twist
     /// `(v, ω)` in the camera frame.
     pub fn camera_jacobian<const N: usize>(
         &self,

@@ -2,7 +2,7 @@
 
 use super::{ChainLink, JointKind, RobotError, SerialChain};
 use crate::math::{JointVector, KinematicJacobian};
-use nalgebra::{Isometry3, Point3, Quaternion, SMatrix, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, SMatrix, Translation3, UnitQuaternion, Vector3};
 
 /// Everything one kinematic evaluation computes, for `N` joints, read through the reference
 /// [`SerialChain::kinematics`] returns. All frames and vectors are in the base frame unless named otherwise.
@@ -65,47 +65,52 @@ impl<const N: usize> SerialChain<N> {
         let state = &mut workspace.state;
         state.q = *q;
 
-        // Poses: base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i).
-        let mut base_from_segment = Isometry3::identity();
-        for ((((joint, &qi), frame), axis), rotational) in self
+        // Poses: base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i). The half-angle sines and
+        // cosines come first, off the serial dependency chain of the poses.
+        let mut half_angles = [(0.0, 1.0); N];
+        for ((sc, joint), &qi) in half_angles.iter_mut().zip(self.joints.iter()).zip(q.iter()) {
+            if joint.kind.is_rotational() {
+                *sc = (0.5 * qi).sin_cos();
+            }
+        }
+        let mut rotation = UnitQuaternion::identity();
+        let mut translation = Vector3::zeros();
+        for ((((joint, (&qi, &(s, c))), frame), axis), rotational) in self
             .joints
             .iter()
-            .zip(q.iter())
+            .zip(q.iter().zip(half_angles.iter()))
             .zip(state.base_from_segment.iter_mut())
             .zip(state.axes.iter_mut())
             .zip(state.rotational.iter_mut())
         {
             *rotational = joint.kind.is_rotational();
-            let base_from_joint = base_from_segment * joint.origin;
-            *axis = base_from_joint.rotation * joint.axis.into_inner();
-            base_from_segment = match joint.kind {
-                JointKind::Revolute | JointKind::Continuous => {
-                    let (s, c) = (0.5 * qi).sin_cos();
-                    let v = joint.axis.into_inner() * s;
-                    let motion = UnitQuaternion::new_unchecked(Quaternion::new(c, v.x, v.y, v.z));
-                    Isometry3::from_parts(
-                        base_from_joint.translation,
-                        base_from_joint.rotation * motion,
-                    )
-                }
-                JointKind::Prismatic => Isometry3::from_parts(
-                    Translation3::from(base_from_joint.translation.vector + *axis * qi),
-                    base_from_joint.rotation,
-                ),
-            };
-            *frame = base_from_segment;
+            let matrix = rotation.to_rotation_matrix();
+            let joint_origin = translation + matrix * joint.origin.translation.vector;
+            *axis = matrix * joint.axis_in_parent;
+            if *rotational {
+                // origin.rotation ⊗ (cos(q/2), sin(q/2) axis), unit by construction.
+                let local = joint.origin.rotation.into_inner() * c + joint.origin_times_axis * s;
+                rotation *= UnitQuaternion::new_unchecked(local);
+                translation = joint_origin;
+            } else {
+                rotation *= joint.origin.rotation;
+                translation = joint_origin + *axis * qi;
+            }
+            *frame = Isometry3::from_parts(Translation3::from(translation), rotation);
         }
+        let base_from_segment = Isometry3::from_parts(Translation3::from(translation), rotation);
         state.base_from_tip = base_from_segment * self.segment_from_tip;
 
         // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
         let tip = state.base_from_tip.translation.vector;
         let tip_from_base = state.base_from_tip.rotation.inverse().to_rotation_matrix();
-        for (i, ((joint, frame), axis)) in self
+        for ((((joint, frame), axis), mut base_column), mut tip_column) in self
             .joints
             .iter()
             .zip(state.base_from_segment.iter())
             .zip(state.axes.iter())
-            .enumerate()
+            .zip(state.base_jacobian.column_iter_mut())
+            .zip(state.tip_jacobian.column_iter_mut())
         {
             let (linear, angular) = match joint.kind {
                 JointKind::Revolute | JointKind::Continuous => {
@@ -113,14 +118,12 @@ impl<const N: usize> SerialChain<N> {
                 }
                 JointKind::Prismatic => (*axis, Vector3::zeros()),
             };
-            let mut column = state.base_jacobian.column_mut(i);
-            column.fixed_rows_mut::<3>(0).copy_from(&linear);
-            column.fixed_rows_mut::<3>(3).copy_from(&angular);
-            let mut column = state.tip_jacobian.column_mut(i);
-            column
+            base_column.fixed_rows_mut::<3>(0).copy_from(&linear);
+            base_column.fixed_rows_mut::<3>(3).copy_from(&angular);
+            tip_column
                 .fixed_rows_mut::<3>(0)
                 .copy_from(&(tip_from_base * linear));
-            column
+            tip_column
                 .fixed_rows_mut::<3>(3)
                 .copy_from(&(tip_from_base * angular));
         }
@@ -145,7 +148,7 @@ impl<const N: usize> KinematicState<N> {
         &self.base_jacobian
     }
 
-    /// The geometric Jacobian in the end-effector frame, `eJe` (MATH [M42]): `eJe q̇` is the tip twist `(v, ω)`
+    /// The geometric Jacobian in the end-effector frame, `eJe` (MATH \[M42\]): `eJe q̇` is the tip twist `(v, ω)`
     /// expressed in tip axes, taken at the tip origin.
     pub fn tip_jacobian(&self) -> &KinematicJacobian<N> {
         &self.tip_jacobian

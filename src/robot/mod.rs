@@ -6,7 +6,7 @@
 //! fixed transforms, axes, limits, names) and a [`KinematicsWorkspace<N>`] holds everything one evaluation writes.
 //! [`SerialChain::kinematics`] fills the workspace for a joint vector `q` and returns the [`KinematicState<N>`] it
 //! computed: the pose `base_from_tip` (ViSP `fMe`), the geometric Jacobian in the base frame and in the end-effector
-//! frame (`eJe`, MATH [M42]), and the pose and axis of every joint. The computation allocates nothing.
+//! frame (`eJe`, MATH \[M42\]), and the pose and axis of every joint. The computation allocates nothing.
 //!
 //! # Conventions
 //!
@@ -29,7 +29,7 @@
 //!   eJe = diag(eRb, eRb) · base_J                  (the same tip twist, expressed in the tip frame)
 //!   ```
 //!   so `base_J q̇` is the linear velocity of the tip origin and the angular velocity of the tip, in base axes, and
-//!   `eJe q̇` the same twist in tip axes — the `eJe` that MATH [M42] multiplies by `cVe` [M43].
+//!   `eJe q̇` the same twist in tip axes — the `eJe` that MATH \[M42\] multiplies by `cVe` \[M43\].
 //!
 //! # Joint limits
 //!
@@ -64,7 +64,7 @@ pub use kinematics::{KinematicState, KinematicsWorkspace};
 
 use crate::camera::CameraError;
 use crate::math::JointVector;
-use nalgebra::{Isometry3, Unit, Vector3};
+use nalgebra::{Isometry3, Quaternion, Unit, Vector3};
 
 /// Errors of robot loading and kinematics. Each variant names the offending joint, link or value.
 #[non_exhaustive]
@@ -222,9 +222,33 @@ pub struct Joint {
     child_link: String,
     origin: Isometry3<f64>,
     axis: Unit<Vector3<f64>>,
+    /// Cached for the kinematics: the axis in the previous segment frame, `origin.rotation · axis`.
+    axis_in_parent: Vector3<f64>,
+    /// Cached for the kinematics: `origin.rotation ⊗ (0, axis)`, so that the rotation `origin · Rot(axis, q)` is
+    /// the quaternion `cos(q/2) origin.rotation + sin(q/2) origin_times_axis`.
+    origin_times_axis: Quaternion<f64>,
 }
 
 impl Joint {
+    fn new(
+        name: String,
+        kind: JointKind,
+        child_link: String,
+        origin: Isometry3<f64>,
+        axis: Unit<Vector3<f64>>,
+    ) -> Self {
+        Self {
+            name,
+            kind,
+            child_link,
+            origin,
+            axis,
+            axis_in_parent: origin.rotation * axis.into_inner(),
+            origin_times_axis: origin.rotation.into_inner()
+                * Quaternion::from_imag(axis.into_inner()),
+        }
+    }
+
     /// The URDF joint name.
     pub fn name(&self) -> &str {
         &self.name

@@ -95,13 +95,13 @@ impl<const N: usize> SerialChain<N> {
                     let (lo, hi) = joint_limits(urdf_joint, kind)?;
                     lower.push(lo);
                     upper.push(hi);
-                    joints.push(Joint {
-                        name: urdf_joint.name.clone(),
+                    joints.push(Joint::new(
+                        urdf_joint.name.clone(),
                         kind,
-                        child_link: urdf_joint.child.link.clone(),
+                        urdf_joint.child.link.clone(),
                         origin,
-                        axis: joint_axis(urdf_joint)?,
-                    });
+                        joint_axis(urdf_joint)?,
+                    ));
                     segment_from_link = Isometry3::identity();
                 }
             }
@@ -234,16 +234,16 @@ fn joint_limits(joint: &urdf_rs::Joint, kind: JointKind) -> Result<(f64, f64), R
             values: vec![lower, upper],
         });
     }
-    let missing = RobotError::MissingLimits {
-        joint: joint.name.clone(),
-        lower,
-        upper,
-    };
+    let joint = joint.name.clone();
     if lower.is_infinite() || upper.is_infinite() || (lower == 0.0 && upper == 0.0) {
-        Err(missing)
+        Err(RobotError::MissingLimits {
+            joint,
+            lower,
+            upper,
+        })
     } else if lower >= upper {
         Err(RobotError::InvalidLimits {
-            joint: joint.name.clone(),
+            joint,
             lower,
             upper,
         })
