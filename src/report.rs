@@ -233,7 +233,7 @@ mod figures {
     }
 
     /// Writes the figures of `run` into `out_dir` as `{name}_joints`, `{name}_errors`, `{name}_image` and, when the run
-    /// computed criteria, `{name}_criteria` (PNG and SVG each).
+    /// computed criteria, `{name}_criteria` (PNG and SVG each). A run without any iteration has no figure.
     ///
     /// # Errors
     /// [`PlotError`] on I/O or invalid data (an empty run).
@@ -245,6 +245,9 @@ mod figures {
     ) -> Result<Vec<RenderedFiles>, PlotError> {
         let iteration = |k: usize| run.records[k].iteration as f64;
         let mut files = Vec::new();
+        if run.records.is_empty() {
+            return Ok(files); // the run ended before its first iteration (e.g. the target not visible at the start)
+        }
         let joints = LinePlot {
             title: format!("{name}: normalised joint positions (limits at 0 and 1)"),
             x_label: "iteration".into(),

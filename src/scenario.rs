@@ -394,6 +394,19 @@ impl Scenario {
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
+        let mut workspace = crate::robot::KinematicsWorkspace::new();
+        let visible = match scene.observe(&mut workspace, &start) {
+            Ok(view) => scene
+                .intrinsics()
+                .all_in_field_of_view(&view.points, self.simulation.image_margin),
+            Err(_) => false,
+        };
+        if !visible {
+            return Err(invalid(
+                "start.joints",
+                "the target is not entirely in the image at the start",
+            ));
+        }
         Ok(Experiment {
             scene,
             start,

@@ -1,0 +1,133 @@
+//! Scenario files: the shipped six-revolute scenario converges with the full method, and bad files give errors that
+//! name the field at fault.
+
+use servostack::scenario::{RunKind, Scenario, ScenarioError};
+use servostack::sim::Outcome;
+use std::path::Path;
+
+const UR5E: &str = include_str!("../assets/scenarios/ur5e.toml");
+
+fn assets() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios"))
+}
+
+#[test]
+fn full_method_on_the_six_revolute_arm_converges() {
+    let scenario = Scenario::from_file(&assets().join("ur5e.toml")).unwrap();
+    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    assert_eq!(run.outcome, Outcome::Converged);
+    assert_eq!(
+        run.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    assert!(run.final_error_norm() < 4.0 * scenario.simulation.convergence_error);
+    assert!(run.max_velocity_jump() <= 1e-9);
+    assert!(run.min_normalized_margin() > 0.0);
+}
+
+/// The text of the UR5e scenario with one line replaced (the line must exist).
+fn edited(from: &str, to: &str) -> String {
+    assert!(UR5E.contains(from), "fixture line not found: {from}");
+    UR5E.replacen(from, to, 1)
+}
+
+fn error_of(text: &str) -> String {
+    let result =
+        Scenario::from_toml_str(text, Some(assets())).and_then(|s| s.experiment::<6>().map(|_| ()));
+    result
+        .expect_err("the scenario should be rejected")
+        .to_string()
+}
+
+#[test]
+fn unknown_robot_is_named() {
+    let message = error_of(&edited("builtin = \"ur5e\"", "builtin = \"puma560\""));
+    assert!(
+        message.contains("robot") && message.contains("puma560"),
+        "{message}"
+    );
+}
+
+#[test]
+fn missing_field_is_named() {
+    let message = error_of(&edited("width_m = 0.2\n", ""));
+    assert!(message.contains("width_m"), "{message}");
+}
+
+#[test]
+fn wrong_unit_name_is_rejected() {
+    // Degrees are written `rpy_deg`; a bare `rpy` (which a reader might take for radians) is an unknown field.
+    let message = error_of(&edited(
+        "rpy_deg = [15.0, 0.0, 0.0]",
+        "rpy = [0.26, 0.0, 0.0]",
+    ));
+    assert!(message.contains("rpy"), "{message}");
+}
+
+#[test]
+fn wrong_sizes_are_named() {
+    let message = error_of(&edited(
+        "joints = [0.12, -1.8, 1.8, -1.45, -1.68, 0.3]",
+        "joints = [0.12, -1.8, 1.8]",
+    ));
+    assert!(
+        message.contains("start.joints") && message.contains("3 values"),
+        "{message}"
+    );
+    let message = error_of(&edited(
+        "gains = [0.6, 0.6, 0.6, 0.6]",
+        "gains = [0.6, 0.6]",
+    ));
+    assert!(message.contains("gains"), "{message}");
+}
+
+#[test]
+fn start_outside_the_limits_is_named() {
+    let message = error_of(&edited(
+        "joints = [0.12, -1.8, 1.8, -1.45, -1.68, 0.3]",
+        "joints = [0.12, -1.8, 3.5, -1.45, -1.68, 0.3]",
+    ));
+    assert!(
+        message.contains("start.joints") && message.contains("joint 2"),
+        "{message}"
+    );
+}
+
+#[test]
+fn target_out_of_sight_at_the_start_is_named() {
+    let message = error_of(&edited(
+        "joints = [0.12, -1.8, 1.8, -1.45, -1.68, 0.3]",
+        "joints = [1.5, -1.8, 1.8, -1.45, -1.68, 0.3]",
+    ));
+    assert!(
+        message.contains("start.joints") && message.contains("image"),
+        "{message}"
+    );
+}
+
+#[test]
+fn invalid_values_are_named() {
+    let message = error_of(&edited("activation_ratio = 0.1", "activation_ratio = 0.7"));
+    assert!(message.contains("activation_ratio"), "{message}");
+    let message = error_of(&edited("fx = 800.0", "fx = -800.0"));
+    assert!(
+        message.contains("camera") && message.contains("fx"),
+        "{message}"
+    );
+    let message = error_of(&edited("settle_velocity = 0.01", "settle_velocity = 0.0"));
+    assert!(
+        message.contains("controller") && message.contains("settle_velocity"),
+        "{message}"
+    );
+    let message = error_of(&edited(
+        "interaction = \"exact\"",
+        "interaction = \"approximate\"",
+    ));
+    assert!(message.contains("interaction"), "{message}");
+}
+
+#[test]
+fn missing_file_is_an_io_error() {
+    let error = Scenario::from_file(Path::new("/nonexistent/scenario.toml")).unwrap_err();
+    assert!(matches!(error, ScenarioError::Io { .. }));
+}
