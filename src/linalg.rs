@@ -12,9 +12,15 @@
 //!
 //! The decomposition is a **one-sided Jacobi SVD** (Hestenes): plane rotations applied to the columns of a working
 //! copy `W` of the matrix until its columns are mutually orthogonal. Then `W = A V = [σ_1 u_1, …, σ_N u_N]`. It runs on
-//! the caller's storage plus a fixed `N × N` matrix, allocates nothing, works for any row count (including `m > N`),
+//! the caller's storage plus fixed `N × N` matrices, allocates nothing, works for any row count (including `m > N`),
 //! and is accurate to working precision for the small singular values that decide ranks (no normal equations, whose
 //! squared condition number would blur them).
+//!
+//! It works on the **smaller side** (DESIGN principle 3): a matrix with fewer rows than columns (`m < N`, every level
+//! of the paper's stack) is decomposed through the `m` columns of `Aᵀ` (`m(m−1)/2` pairs instead of `N(N−1)/2`): a
+//! one-row level needs no rotation, a two-row level one rotation, the closed form of its `2 × 2` Gram matrix `AAᵀ`
+//! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix
+//! is rotated on a fixed-size copy. Columns that are zero (or rounding noise) cost no rotation.
 //!
 //! **Rank policy** ([`RankPolicy`], D2): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
 //! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
@@ -209,64 +215,75 @@ impl<const N: usize> ColumnSvd<N> {
         if !all_finite(work) {
             return Err(LinalgError::NonFiniteMatrix);
         }
+        let rows = work.nrows();
         self.v = JointMatrix::identity();
-        // Columns below this squared norm are rounding noise (σ ≤ 16 ε ‖A‖_F): they are left alone, since rotations
-        // among them cannot reach relative orthogonality and do not affect any singular value a rank policy keeps.
-        let negligible = (16.0 * f64::EPSILON).powi(2) * work.norm_squared();
-        let mut converged = false;
-        for _ in 0..MAX_SWEEPS {
-            let mut rotated = false;
-            for p in 0..N {
-                for q in (p + 1)..N {
-                    rotated |= self.rotate_pair(work, p, q, negligible);
-                }
-            }
-            if !rotated {
-                converged = true;
-                break;
-            }
+        let scale = work.norm_squared();
+        if rows < N {
+            self.decompose_wide(work, scale)?;
+        } else if rows == N {
+            // Square: on a fixed-size copy, whose column operations compile to straight-line code.
+            let mut square = JointMatrix::<N>::zeros();
+            // Both iterate column-major over N × N entries.
+            square
+                .iter_mut()
+                .zip(work.iter())
+                .for_each(|(s, w)| *s = *w);
+            jacobi::<N, _, _, _, _, _, _>(&mut square, N, &mut self.v, scale)?;
+            work.iter_mut()
+                .zip(square.iter())
+                .for_each(|(w, s)| *w = *s);
+        } else {
+            jacobi::<N, _, _, _, _, _, _>(work, N, &mut self.v, scale)?;
         }
-        if !converged {
-            return Err(LinalgError::NoConvergence { sweeps: MAX_SWEEPS });
-        }
-        for k in 0..N {
-            self.sigma[k] = work.column(k).norm();
+        if rows >= N {
+            for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
+                *sigma = column.norm();
+            }
         }
         self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
         Ok(())
     }
 
-    /// One Jacobi rotation of columns `p`, `q` that makes them orthogonal; `false` when they already are (to working
-    /// precision) or one of them is negligible (squared norm at most `negligible`).
-    fn rotate_pair<R, S>(
+    /// The decomposition of a matrix with fewer rows than columns (`m < N`), on its smaller side: one-sided Jacobi on
+    /// the `m` columns of `Aᵀ` (`N × m`), `Aᵀ U = [σ_1 v_1, …, σ_m v_m]` with `U` (`m × m`) orthogonal. A one-row level
+    /// needs no rotation at all, a two-row level one (the closed form of the `2 × 2` Gram matrix `A Aᵀ`, with `σ_k`
+    /// taken as column norms, not square roots of its eigenvalues). Then `W = A V` has columns `σ_k u_k` (`k < m`) and
+    /// zeros; `v_k` and `σ_k` of the `N − m` remaining columns are zero.
+    fn decompose_wide<R, S>(
         &mut self,
         work: &mut Matrix<f64, R, Const<N>, S>,
-        p: usize,
-        q: usize,
-        negligible: f64,
-    ) -> bool
+        scale: f64,
+    ) -> Result<(), LinalgError>
     where
         R: Dim,
         S: StorageMut<f64, R, Const<N>>,
     {
-        let alpha = work.column(p).norm_squared();
-        let beta = work.column(q).norm_squared();
-        if alpha <= negligible || beta <= negligible {
-            return false;
+        let rows = work.nrows();
+        let mut transposed = JointMatrix::<N>::zeros();
+        for (mut column, row) in transposed.column_iter_mut().zip(work.row_iter()) {
+            column.tr_copy_from(&row);
         }
-        let gamma = work.column(p).dot(&work.column(q));
-        // An m-term dot product carries a rounding error of about m ε √(αβ): asking for less never converges.
-        let tolerance = (work.nrows().max(1) as f64) * f64::EPSILON;
-        if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
-            return false;
+        let mut left = JointMatrix::<N>::identity();
+        {
+            let mut a = transposed.columns_mut(0, rows);
+            let mut u = left.view_mut((0, 0), (rows, rows));
+            jacobi::<N, _, _, _, _, _, _>(&mut a, rows, &mut u, scale)?;
         }
-        let zeta = (beta - alpha) / (2.0 * gamma);
-        let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
-        let c = 1.0 / (1.0 + t * t).sqrt();
-        let s = c * t;
-        rotate_columns(work, p, q, c, s);
-        rotate_columns(&mut self.v, p, q, c, s);
-        true
+        self.v.fill(0.0);
+        self.sigma.fill(0.0);
+        work.fill(0.0);
+        for k in 0..rows {
+            let sigma = transposed.column(k).norm();
+            self.sigma[k] = sigma;
+            if sigma > 0.0 {
+                self.v.set_column(k, &(transposed.column(k) / sigma));
+            }
+            // w_k = A v_k = σ_k u_k (the first m entries of column k of U).
+            for (w, u) in work.column_mut(k).iter_mut().zip(left.column(k).iter()) {
+                *w = sigma * u;
+            }
+        }
+        Ok(())
     }
 
     /// The largest singular value.
@@ -279,7 +296,8 @@ impl<const N: usize> ColumnSvd<N> {
         &self.sigma
     }
 
-    /// The right singular vectors, one per column.
+    /// The right singular vectors, one per column. For a matrix with `m < N` rows only the first `m` columns are
+    /// singular vectors; the others, whose singular value is zero, are zero.
     pub fn right_vectors(&self) -> &JointMatrix<N> {
         &self.v
     }
@@ -373,6 +391,65 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
     }
 }
 
+/// One-sided Jacobi (Hestenes) on the first `columns ≤ N` columns of `a`: plane rotations of column pairs, accumulated in
+/// the columns of `acc`, until every pair is orthogonal to working precision. `scale` is `‖a‖_F²`: columns below
+/// `(16 ε)² · scale` are rounding noise (`σ ≤ 16 ε ‖A‖_F`) and are left alone, since rotations among them cannot reach
+/// relative orthogonality and do not affect any singular value a rank policy keeps; zero columns cost nothing.
+///
+/// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
+/// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
+fn jacobi<const N: usize, R, C, S, RA, CA, SA>(
+    a: &mut Matrix<f64, R, C, S>,
+    columns: usize,
+    acc: &mut Matrix<f64, RA, CA, SA>,
+    scale: f64,
+) -> Result<(), LinalgError>
+where
+    R: Dim,
+    C: Dim,
+    S: StorageMut<f64, R, C>,
+    RA: Dim,
+    CA: Dim,
+    SA: StorageMut<f64, RA, CA>,
+{
+    let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
+    // An m-term dot product carries a rounding error of about m ε √(αβ): asking for less never converges.
+    let tolerance = (a.nrows().max(1) as f64) * f64::EPSILON;
+    let mut norms = [0.0; N];
+    let norms = &mut norms[..columns.min(N)];
+    for _ in 0..MAX_SWEEPS {
+        for (k, norm) in norms.iter_mut().enumerate() {
+            *norm = a.column(k).norm_squared();
+        }
+        let mut rotated = false;
+        for p in 0..columns {
+            for q in (p + 1)..columns {
+                let (alpha, beta) = (norms[p], norms[q]);
+                if alpha <= negligible || beta <= negligible {
+                    continue;
+                }
+                let gamma = a.column(p).dot(&a.column(q));
+                if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
+                    continue;
+                }
+                let zeta = (beta - alpha) / (2.0 * gamma);
+                let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+                let c = 1.0 / (1.0 + t * t).sqrt();
+                let s = c * t;
+                rotate_columns(a, p, q, c, s);
+                rotate_columns(acc, p, q, c, s);
+                norms[p] = alpha - t * gamma;
+                norms[q] = beta + t * gamma;
+                rotated = true;
+            }
+        }
+        if !rotated {
+            return Ok(());
+        }
+    }
+    Err(LinalgError::NoConvergence { sweeps: MAX_SWEEPS })
+}
+
 /// Replaces columns `p`, `q` of `m` by `c·m_p − s·m_q` and `s·m_p + c·m_q`.
 fn rotate_columns<R, C, S>(m: &mut Matrix<f64, R, C, S>, p: usize, q: usize, c: f64, s: f64)
 where
@@ -384,6 +461,23 @@ where
         let (a, b) = (m[(i, p)], m[(i, q)]);
         m[(i, p)] = c * a - s * b;
         m[(i, q)] = s * a + c * b;
+    }
+}
+
+/// `out = a · b` for a matrix `a` with a run-time number of rows and a small fixed-size `b` (`K × N`), row by row on
+/// fixed-size rows: allocation-free and without the packing of a general matrix product (nalgebra's dynamic `gemm`
+/// hands sizes like `8 × 6 · 6 × 6` to a blocked kernel that allocates its packing buffers).
+pub(crate) fn mul_rows_to<const K: usize, const N: usize, R, SA, SO>(
+    a: &Matrix<f64, R, Const<K>, SA>,
+    b: &nalgebra::SMatrix<f64, K, N>,
+    out: &mut Matrix<f64, R, Const<N>, SO>,
+) where
+    R: Dim,
+    SA: RawStorage<f64, R, Const<K>>,
+    SO: StorageMut<f64, R, Const<N>>,
+{
+    for (row, mut out_row) in a.row_iter().zip(out.row_iter_mut()) {
+        out_row.copy_from(&(row * b));
     }
 }
 

@@ -38,7 +38,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::linalg::{ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
+use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
 use crate::math::{all_finite, JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
@@ -234,9 +234,13 @@ pub fn solve_stack<'w, const N: usize>(
         r.copy_from(task.error());
         r *= -task.gain();
         r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
-        // J̃_i = J_i P^A_{i−1}, decomposed in place into W = J̃_i V.
+        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I), decomposed in place into W = J̃_i V.
         let mut w = limited.rows_mut(0, rows);
-        w.gemm(1.0, task.jacobian(), &solution.projector, 0.0);
+        if level == 0 {
+            w.copy_from(task.jacobian());
+        } else {
+            mul_rows_to(task.jacobian(), &solution.projector, &mut w);
+        }
         svd.decompose_with_scale(&mut w, &parameters.rank_policy, task.jacobian().norm())
             .map_err(|source| StackError::Linalg { level, source })?;
         svd.solve(&w, &r, parameters.velocity_inverse, step)
