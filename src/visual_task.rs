@@ -180,7 +180,7 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
                 .map_err(|e| feature_error(&self.name, e))?,
         }
         // J = L (cVe eJe)   [M42]
-        jacobian.gemm(1.0, interaction, context.camera_jacobian, 0.0);
+        crate::linalg::mul_rows_to(&*interaction, context.camera_jacobian, jacobian);
         Ok(())
     }
 }
