@@ -6,7 +6,7 @@
 //! `{"variant", "ns_per_iter_median", "ns_per_iter_min", "iters", "final_error"}`, where `final_error` is `‖e‖` after
 //! the last iteration of an episode (small: the loop servos).
 //!
-//! Run with `cargo bench --bench peer`.
+//! Run with `cargo bench --bench peer` (all variants) or `cargo bench --bench peer -- A` (one).
 
 #[path = "common/servo_loop.rs"]
 mod servo_loop;
@@ -37,7 +37,15 @@ fn episode(servo: &mut ServoLoop, batches: &mut Vec<f64>) -> f64 {
 fn main() {
     // `cargo bench` passes `--bench`; a test run (`cargo test --benches`) passes nothing: run one short episode only.
     let benchmarking = std::env::args().any(|a| a == "--bench");
+    // Other arguments select variants by name (`cargo bench --bench peer -- A C`); none selects all.
+    let selected: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
     for variant in Variant::ALL {
+        if !(selected.is_empty() || selected.iter().any(|s| s == variant.name())) {
+            continue;
+        }
         let mut servo = ServoLoop::peer(variant);
         let mut batches = Vec::with_capacity(EPISODES * ITERATIONS / BATCH);
         let mut final_error = episode(&mut servo, &mut batches); // warm-up

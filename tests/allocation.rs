@@ -3,7 +3,11 @@
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
 
+#[path = "../benches/common/servo_loop.rs"]
+mod servo_loop;
+
 use counting_allocator::allocations_during;
+use servo_loop::{ServoLoop, Variant};
 use servostack::avoidance::{Cost, JointLimits};
 use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 use servostack::math::JointVector;
@@ -76,4 +80,46 @@ fn steady_state_stack_solve_with_avoidance_allocates_nothing() {
     // The run really servoed: the stacked linear tasks (all zero at the common target) converged.
     let final_error: f64 = order.iter().map(|&i| values[i].error().norm()).sum();
     assert!(final_error < 1e-3, "final error {final_error}");
+}
+
+/// 1000 steady-state iterations of a whole servo loop (kinematics, projection, features, tasks, law or controller,
+/// Euler step: the code the `peer` and `control_loop` benches time) allocate nothing, and the loop servos.
+fn assert_servo_loop_allocates_nothing(mut servo: ServoLoop, name: &str) {
+    servo.settle();
+    for _ in 0..5 {
+        servo.step();
+    }
+    let initial_error = servo.error_norm();
+    let allocations = allocations_during(|| {
+        for _ in 0..1000 {
+            servo.step();
+        }
+    });
+    assert_eq!(
+        allocations, 0,
+        "{name}: {allocations} allocations in 1000 steps"
+    );
+    let error = servo.error_norm();
+    assert!(
+        error.is_finite() && error < initial_error,
+        "{name}: error {initial_error} -> {error}"
+    );
+}
+
+#[test]
+fn peer_variants_allocate_nothing() {
+    for variant in Variant::ALL {
+        assert_servo_loop_allocates_nothing(ServoLoop::peer(variant), variant.name());
+    }
+}
+
+#[test]
+fn paper_controller_step_allocates_nothing() {
+    let servo = ServoLoop::paper();
+    assert_servo_loop_allocates_nothing(servo, "paper");
+}
+
+#[test]
+fn classical_controller_step_allocates_nothing() {
+    assert_servo_loop_allocates_nothing(ServoLoop::classical(), "classical");
 }

@@ -63,7 +63,8 @@ impl Variant {
     }
 }
 
-/// What drives the joints.
+/// What drives the joints (one per loop, never moved in the loop: the size difference does not matter).
+#[allow(clippy::large_enum_variant)]
 enum Drive {
     /// The bare control law on one stack: `avoid` adds the joint-limit cost (with `κ`), `smooth_start` makes the first
     /// step a switch from rest (the continuity term).
@@ -334,6 +335,16 @@ impl ServoLoop {
     /// The scene.
     pub fn scene(&self) -> &Scene<6> {
         &self.scene
+    }
+
+    /// The tasks.
+    pub fn tasks(&self) -> &[VisualTask] {
+        &self.tasks
+    }
+
+    /// The control law.
+    pub fn law(&self) -> &ControlLaw {
+        &self.law
     }
 
     /// The evaluated tasks of the last step.
