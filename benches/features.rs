@@ -51,7 +51,7 @@ fn features(c: &mut Criterion) {
     let mut l = OMatrix::<f64, Dyn, U6>::zeros(6);
 
     c.bench_function("observation (moments to order 3 with rows)", |b| {
-        b.iter(|| Observation::new(black_box(&points), None).map(|o| o.moments().xg()))
+        b.iter(|| Observation::new(black_box(&points), None).map(|o| o.moments().map(|m| m.xg())))
     });
     c.bench_function("paper four tasks, exact L, from four points", |b| {
         b.iter(|| -> Result<(), servostack::feature::FeatureError> {

@@ -146,7 +146,7 @@ impl Feature for MomentOrientation {
         2
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let o = obs.moments().orientation_terms()?;
+        let o = obs.moments()?.orientation_terms()?;
         super::write_values(s, &[0.5 * o.s1.atan2(o.c1)]);
         Ok(())
     }
@@ -156,7 +156,7 @@ impl Feature for MomentOrientation {
         _source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let o = obs.moments().orientation_terms()?;
+        let o = obs.moments()?.orientation_terms()?;
         super::write_rows(l, &[(o.l_s1 * o.c1 - o.l_c1 * o.s1) / (2.0 * o.i1)]);
         Ok(())
     }

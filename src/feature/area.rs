@@ -51,7 +51,7 @@ impl Feature for CentredMoment {
         1
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let (mu, _) = self.get(obs.moments())?;
+        let (mu, _) = self.get(obs.moments()?)?;
         super::write_values(s, &[mu]);
         Ok(())
     }
@@ -61,7 +61,7 @@ impl Feature for CentredMoment {
         _source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let (_, row) = self.get(obs.moments())?;
+        let (_, row) = self.get(obs.moments()?)?;
         super::write_rows(l, &[row]);
         Ok(())
     }
@@ -93,7 +93,7 @@ impl AreaNormalization {
     /// # Errors
     /// [`FeatureError::DegenerateArea`] when the desired points coincide; [`FeatureError::InvalidParameter`] for `Z*`.
     pub fn from_desired(desired: &Observation<'_>, z_star: f64) -> Result<Self, FeatureError> {
-        let (a_star, _) = desired.moments().size()?;
+        let (a_star, _) = desired.moments()?.size()?;
         Self::new(z_star, a_star)
     }
 
@@ -152,7 +152,7 @@ impl Feature for AreaNormalized {
         2
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let (a_n, _) = self.normalization.evaluate(obs.moments())?;
+        let (a_n, _) = self.normalization.evaluate(obs.moments()?)?;
         super::write_values(s, &[a_n]);
         Ok(())
     }
@@ -162,7 +162,7 @@ impl Feature for AreaNormalized {
         source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
         let row = match source {
             InteractionSource::PaperApprox => {
@@ -196,7 +196,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn moments_of(pts: &[ImagePoint]) -> Moments {
-        *Observation::new(pts, None).unwrap().moments()
+        *Observation::new(pts, None).unwrap().moments().unwrap()
     }
 
     proptest! {

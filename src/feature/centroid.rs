@@ -49,7 +49,7 @@ impl Feature for Centroid {
         1
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         super::write_values(s, &[m.xg(), m.yg()]);
         Ok(())
     }
@@ -59,7 +59,7 @@ impl Feature for Centroid {
         source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let (lx, ly) = match source {
             InteractionSource::PaperApprox => point_interaction(m.xg(), m.yg(), 1.0 / self.z_g),
             InteractionSource::Exact | InteractionSource::Desired => {
@@ -102,7 +102,7 @@ impl Feature for NormalizedCentroid {
         2
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let (a_n, _) = self.normalization.evaluate(m)?;
         super::write_values(s, &[a_n * m.xg(), a_n * m.yg()]);
         Ok(())
@@ -113,7 +113,7 @@ impl Feature for NormalizedCentroid {
         _source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
         super::write_rows(
             l,
@@ -158,7 +158,7 @@ mod tests {
             let scene = Scene::new(pose, rectangle(0.2, 0.14));
             let (pts, plane) = scene.image();
             let obs = Observation::new(&pts, None).unwrap();
-            let m = obs.moments();
+            let m = obs.moments().unwrap();
             let n = pts.len() as f64;
             let (xg, yg) = (m.xg(), m.yg());
             let (n20, n11, n02) = (m.mu(2, 0).unwrap() / n, m.mu(1, 1).unwrap() / n, m.mu(0, 2).unwrap() / n);
@@ -199,7 +199,7 @@ mod tests {
             epsilon = 1e-14
         );
         let (pts, _) = scene.image();
-        let m = *Observation::new(&pts, None).unwrap().moments();
+        let m = *Observation::new(&pts, None).unwrap().moments().unwrap();
         let n = 4.0;
         let (n20, n11, n02) = (
             m.mu(2, 0).unwrap() / n,

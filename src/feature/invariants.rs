@@ -30,7 +30,7 @@ impl PaperInvariants {
 
     /// `(P_x, P_y, L_{P_x}, L_{P_y})`.
     fn evaluate(&self, obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let Orientation {
             c1,
             s1,
@@ -105,7 +105,7 @@ pub struct VispInvariants;
 impl VispInvariants {
     /// `(P_x, P_y, L_{P_x}, L_{P_y})`.
     fn evaluate(obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
-        let m = obs.moments();
+        let m = obs.moments()?;
         let o = m.second_order_terms()?;
         let (c2, s2, l_c2, l_s2) = m.third_order_terms();
         let i2 = c2 * c2 + s2 * s2;
@@ -208,7 +208,7 @@ mod tests {
             ImagePoint::new(0.0, 1.0, 1.0),
         ];
         let obs = Observation::new(&pts, None).unwrap();
-        let m = obs.moments();
+        let m = obs.moments().unwrap();
         assert_relative_eq!(m.mu(2, 0).unwrap(), 2.0 / 3.0, epsilon = 1e-15);
         assert_relative_eq!(m.mu(1, 1).unwrap(), -1.0 / 3.0, epsilon = 1e-15);
         assert_relative_eq!(m.mu(3, 0).unwrap(), 2.0 / 9.0, epsilon = 1e-15);

@@ -7,9 +7,10 @@
 //!
 //! # Data flow (no repeated work, no allocation)
 //!
-//! 1. [`Observation::new`] validates the observed [`ImagePoint`]s (and the target plane when known) and computes,
-//!    **once per point set**, the centroid and the centred moments `μ_ij` up to order 3 with their interaction rows
-//!    ([`Moments`], \[M30\], \[M34\]–\[M35\]).
+//! 1. [`Observation::new`] validates the observed [`ImagePoint`]s (and the target plane when known). The centroid
+//!    and the centred moments `μ_ij` up to order 3 with their interaction rows ([`Moments`], \[M30\],
+//!    \[M34\]–\[M35\]) are computed **once per point set**, at the first [`Observation::moments`] call (features that
+//!    read the points only never pay for them).
 //! 2. Each [`Feature`] reads that observation and writes its value into a caller-provided `&mut [f64]`
 //!    ([`Feature::value`]) and its interaction matrix into caller-provided rows of an `OMatrix<f64, Dyn, U6>`
 //!    ([`Feature::interaction`], type [`InteractionRows`]). Nothing allocates on the heap in either call.
@@ -275,7 +276,9 @@ pub enum InteractionSource {
 pub struct Observation<'a> {
     points: &'a [ImagePoint],
     plane: Option<TargetPlane>,
-    moments: Moments,
+    /// Computed at the first [`Observation::moments`] call (`None`: they overflowed), so that features that read the
+    /// points only (e.g. [`AllPoints`]) do not pay for them.
+    moments: std::cell::OnceCell<Option<Moments>>,
 }
 
 impl<'a> Observation<'a> {
@@ -288,8 +291,8 @@ impl<'a> Observation<'a> {
     /// [`FeatureError::TooFewPoints`] for an empty slice; [`FeatureError::NonFinitePoint`] /
     /// [`FeatureError::NonFinitePlane`] for NaN or infinite inputs (every field is checked, even the depths that a
     /// plane makes unused); [`FeatureError::PointBehindCamera`] when a depth in use is `≤ 0`;
-    /// [`FeatureError::PlaneBehindCamera`] when the plane gives `1/Z ≤ 0` at a point;
-    /// [`FeatureError::NonFiniteResult`] when the moments overflow (coordinates beyond about 1e75).
+    /// [`FeatureError::PlaneBehindCamera`] when the plane gives `1/Z ≤ 0` at a point. (Overflowing moments are reported
+    /// by [`Observation::moments`].)
     pub fn new(
         points: &'a [ImagePoint],
         plane: Option<&TargetPlane>,
@@ -338,15 +341,10 @@ impl<'a> Observation<'a> {
                 None => {}
             }
         }
-        let plane = plane.copied();
-        let moments = Moments::compute(points, |p| inverse_depth(plane.as_ref(), p));
-        if !moments.is_finite() {
-            return Err(FeatureError::NonFiniteResult { feature: "moments" });
-        }
         Ok(Self {
             points,
-            plane,
-            moments,
+            plane: plane.copied(),
+            moments: std::cell::OnceCell::new(),
         })
     }
 
@@ -360,9 +358,19 @@ impl<'a> Observation<'a> {
         self.plane.as_ref()
     }
 
-    /// The moments of the point set, computed once by [`Observation::new`].
-    pub fn moments(&self) -> &Moments {
-        &self.moments
+    /// The moments of the point set, computed once, at the first call, and shared by every feature afterwards.
+    ///
+    /// # Errors
+    /// [`FeatureError::NonFiniteResult`] when the moments overflow (coordinates beyond about 1e75).
+    pub fn moments(&self) -> Result<&Moments, FeatureError> {
+        self.moments
+            .get_or_init(|| {
+                let moments =
+                    Moments::compute(self.points, |p| inverse_depth(self.plane.as_ref(), p));
+                moments.is_finite().then_some(moments)
+            })
+            .as_ref()
+            .ok_or(FeatureError::NonFiniteResult { feature: "moments" })
     }
 
     /// Number of observed points (at least 1).
@@ -652,7 +660,7 @@ mod tests {
             ImagePoint::new(0.0, 0.0, 1.0),
         ];
         assert_eq!(
-            Observation::new(&huge, None).err(),
+            Observation::new(&huge, None).unwrap().moments().err(),
             Some(FeatureError::NonFiniteResult { feature: "moments" })
         );
     }
@@ -669,7 +677,7 @@ mod tests {
                 assert_relative_eq!(with_plane.inverse_depth(k).unwrap(), 1.0 / p.depth, max_relative = 1e-12);
             }
             prop_assert_eq!(with_plane.inverse_depth(4), None);
-            let (a, b) = (with_plane.moments(), with_depths.moments());
+            let (a, b) = (with_plane.moments().unwrap(), with_depths.moments().unwrap());
             assert_relative_eq!(a.interaction_mu(2, 1).unwrap(), b.interaction_mu(2, 1).unwrap(), max_relative = 1e-10);
         }
 
