@@ -64,7 +64,16 @@ fn parts(c: &mut Criterion) {
     });
     let view = scene.observe(&mut kinematics, &q).unwrap();
     group.bench_function("observation_moments", |b| {
-        b.iter(|| black_box(black_box(&view).observation().unwrap().moments().xg()))
+        b.iter(|| {
+            black_box(
+                black_box(&view)
+                    .observation()
+                    .unwrap()
+                    .moments()
+                    .unwrap()
+                    .xg(),
+            )
+        })
     });
     let observation = view.observation().unwrap();
     let context = VisualContext {

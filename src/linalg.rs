@@ -28,7 +28,7 @@
 //! ([`ColumnSvd::decompose_with_scale`]).
 
 use crate::math::{all_finite, JointMatrix, JointVector};
-use nalgebra::{Const, Dim, Matrix, RawStorage, StorageMut, Vector};
+use nalgebra::{Const, Dim, Matrix, RawStorage, StorageMut, Vector, U1};
 
 /// Errors of the linear-algebra helpers.
 #[non_exhaustive]
@@ -158,7 +158,13 @@ pub struct ColumnSvd<const N: usize> {
     sigma: JointVector<N>,
     /// The cut-off chosen by the rank policy at the last decomposition.
     threshold: f64,
+    /// `Some(k)` when `v` is a full orthogonal basis that has been through `k` warm starts since the last cold one.
+    basis_age: Option<u32>,
 }
+
+/// A warm-started decomposition ([`ColumnSvd::decompose_warm`]) starts cold after this many warm starts in a row, which
+/// bounds the loss of orthogonality that rotating the same `V` accumulates (about `ε √(rotations)`).
+const WARM_RESTART: u32 = 64;
 
 /// Maximum number of Jacobi sweeps; quadratic convergence makes 6–10 typical for `N ≤ 12`.
 const MAX_SWEEPS: usize = 60;
@@ -169,6 +175,7 @@ impl<const N: usize> Default for ColumnSvd<N> {
             v: JointMatrix::identity(),
             sigma: JointVector::zeros(),
             threshold: 0.0,
+            basis_age: None,
         }
     }
 }
@@ -187,7 +194,7 @@ impl<const N: usize> ColumnSvd<N> {
     ) -> Result<(), LinalgError>
     where
         R: Dim,
-        S: StorageMut<f64, R, Const<N>>,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
         self.decompose_with_scale(work, policy, 0.0)
     }
@@ -210,35 +217,93 @@ impl<const N: usize> ColumnSvd<N> {
     ) -> Result<(), LinalgError>
     where
         R: Dim,
-        S: StorageMut<f64, R, Const<N>>,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
+    {
+        self.decompose_from(work, policy, reference_scale, false)
+    }
+
+    /// As [`Self::decompose_with_scale`], warm-started: for a matrix with at least `N` rows, the rotations start from
+    /// the right singular vectors of this object's previous decomposition (`W = A V_prev`) instead of the identity.
+    /// When the matrix changed little since that call, as in a control loop, the columns of `A V_prev` are nearly
+    /// orthogonal and the sweeps converge in a few rotations of small angle; the result is the same decomposition, to
+    /// rounding (any orthogonal start converges to the same singular values and subspaces, with the same stopping test).
+    /// Every 64th call in a row starts cold, to bound the loss of orthogonality accumulated by rotating the same `V`.
+    /// Matrices with fewer rows than `N` are decomposed on their smaller side, as by [`Self::decompose_with_scale`].
+    ///
+    /// # Errors
+    /// As [`Self::decompose`].
+    pub fn decompose_warm<R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        policy: &RankPolicy,
+        reference_scale: f64,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
+    {
+        self.decompose_from(work, policy, reference_scale, true)
+    }
+
+    fn decompose_from<R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        policy: &RankPolicy,
+        reference_scale: f64,
+        warm: bool,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
         if !all_finite(work) {
             return Err(LinalgError::NonFiniteMatrix);
         }
         let rows = work.nrows();
-        self.v = JointMatrix::identity();
         let scale = work.norm_squared();
+        let age = match self.basis_age {
+            Some(age) if warm && rows >= N && age < WARM_RESTART => Some(age),
+            _ => None,
+        };
+        self.basis_age = None; // until this decomposition succeeds with a full basis
         if rows < N {
+            self.v = JointMatrix::identity();
             self.decompose_wide(work, scale)?;
-        } else if rows == N {
-            // Square: on a fixed-size copy, whose column operations compile to straight-line code.
-            let mut square = JointMatrix::<N>::zeros();
-            // Both iterate column-major over N × N entries.
-            square
-                .iter_mut()
-                .zip(work.iter())
-                .for_each(|(s, w)| *s = *w);
-            jacobi::<N, _, _, _, _, _, _>(&mut square, N, &mut self.v, scale)?;
-            work.iter_mut()
-                .zip(square.iter())
-                .for_each(|(w, s)| *w = *s);
         } else {
-            jacobi::<N, _, _, _, _, _, _>(work, N, &mut self.v, scale)?;
-        }
-        if rows >= N {
+            if age.is_none() {
+                self.v = JointMatrix::identity();
+            }
+            // A square matrix is rotated on a fixed-size copy, a taller one on its triangular factor R (same σ and
+            // V); W = A V is then formed from A itself.
+            let mut square = if rows == N {
+                let mut square = JointMatrix::<N>::zeros();
+                // Both iterate column-major over N × N entries.
+                square
+                    .iter_mut()
+                    .zip(work.iter())
+                    .for_each(|(s, w)| *s = *w);
+                square
+            } else {
+                triangular_factor(work)
+            };
+            if age.is_some() {
+                square *= self.v;
+            }
+            jacobi(&mut square, N, &mut self.v, scale)?;
+            if rows == N {
+                work.iter_mut()
+                    .zip(square.iter())
+                    .for_each(|(w, s)| *w = *s);
+            } else {
+                for mut row in work.row_iter_mut() {
+                    let rotated = &row * self.v;
+                    row.copy_from(&rotated);
+                }
+            }
             for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
                 *sigma = column.norm();
             }
+            self.basis_age = Some(age.map_or(0, |age| age + 1));
         }
         self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
         Ok(())
@@ -256,7 +321,7 @@ impl<const N: usize> ColumnSvd<N> {
     ) -> Result<(), LinalgError>
     where
         R: Dim,
-        S: StorageMut<f64, R, Const<N>>,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
         let rows = work.nrows();
         let mut transposed = JointMatrix::<N>::zeros();
@@ -264,11 +329,8 @@ impl<const N: usize> ColumnSvd<N> {
             column.tr_copy_from(&row);
         }
         let mut left = JointMatrix::<N>::identity();
-        {
-            let mut a = transposed.columns_mut(0, rows);
-            let mut u = left.view_mut((0, 0), (rows, rows));
-            jacobi::<N, _, _, _, _, _, _>(&mut a, rows, &mut u, scale)?;
-        }
+        // Rotating whole columns of U (N entries) is harmless: rows m.. of its first m columns stay zero.
+        jacobi(&mut transposed, rows, &mut left, scale)?;
         self.v.fill(0.0);
         self.sigma.fill(0.0);
         work.fill(0.0);
@@ -398,46 +460,44 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
 ///
 /// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
 /// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
-fn jacobi<const N: usize, R, C, S, RA, CA, SA>(
-    a: &mut Matrix<f64, R, C, S>,
+fn jacobi<const N: usize>(
+    a: &mut JointMatrix<N>,
     columns: usize,
-    acc: &mut Matrix<f64, RA, CA, SA>,
+    acc: &mut JointMatrix<N>,
     scale: f64,
-) -> Result<(), LinalgError>
-where
-    R: Dim,
-    C: Dim,
-    S: StorageMut<f64, R, C>,
-    RA: Dim,
-    CA: Dim,
-    SA: StorageMut<f64, RA, CA>,
-{
+) -> Result<(), LinalgError> {
     let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
-    // An m-term dot product carries a rounding error of about m ε √(αβ): asking for less never converges.
-    let tolerance = (a.nrows().max(1) as f64) * f64::EPSILON;
+    // An N-term dot product carries a rounding error of about N ε √(αβ): asking for less never converges.
+    let tolerance = (N.max(1) as f64) * f64::EPSILON;
+    let columns = columns.min(N);
     let mut norms = [0.0; N];
-    let norms = &mut norms[..columns.min(N)];
     for _ in 0..MAX_SWEEPS {
-        for (k, norm) in norms.iter_mut().enumerate() {
-            *norm = a.column(k).norm_squared();
+        for (norm, column) in norms.iter_mut().zip(a.column_iter()).take(columns) {
+            *norm = column.norm_squared();
         }
         let mut rotated = false;
-        for p in 0..columns {
-            for q in (p + 1)..columns {
+        // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
+        // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
+        let players = columns + columns % 2; // an odd count gets a dummy that sits out
+        for round in 0..players.saturating_sub(1) {
+            for k in 0..players / 2 {
+                let (p, q) = round_robin_pair(players, round, k);
+                if q >= columns {
+                    continue;
+                }
                 let (alpha, beta) = (norms[p], norms[q]);
                 if alpha <= negligible || beta <= negligible {
                     continue;
                 }
-                let gamma = a.column(p).dot(&a.column(q));
+                let (x, y) = column_pair(a, p, q);
+                let gamma = dot(x, y);
                 if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
                     continue;
                 }
-                let zeta = (beta - alpha) / (2.0 * gamma);
-                let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
-                let c = 1.0 / (1.0 + t * t).sqrt();
-                let s = c * t;
-                rotate_columns(a, p, q, c, s);
-                rotate_columns(acc, p, q, c, s);
+                let (c, s, t) = jacobi_rotation(alpha, beta, gamma);
+                rotate(x, y, c, s);
+                let (x, y) = column_pair(acc, p, q);
+                rotate(x, y, c, s);
                 norms[p] = alpha - t * gamma;
                 norms[q] = beta + t * gamma;
                 rotated = true;
@@ -450,18 +510,125 @@ where
     Err(LinalgError::NoConvergence { sweeps: MAX_SWEEPS })
 }
 
-/// Replaces columns `p`, `q` of `m` by `c·m_p − s·m_q` and `s·m_p + c·m_q`.
-fn rotate_columns<R, C, S>(m: &mut Matrix<f64, R, C, S>, p: usize, q: usize, c: f64, s: f64)
+/// Pair `k` of round `round` of the circle method for `players` (even) columns: player 0 stays, the others turn.
+/// Returns `(p, q)` with `p < q`.
+#[inline(always)]
+fn round_robin_pair(players: usize, round: usize, k: usize) -> (usize, usize) {
+    let turning = players - 1;
+    let seat = |i: usize| {
+        if i == 0 {
+            return 0;
+        }
+        // (i − 1 + round) mod turning, without a division: both terms are below `turning`.
+        let turned = i - 1 + round;
+        1 + if turned >= turning {
+            turned - turning
+        } else {
+            turned
+        }
+    };
+    let (a, b) = (seat(k), seat(players - 1 - k));
+    (a.min(b), a.max(b))
+}
+
+/// The rotation `(c, s)` and `t = s/c` that makes columns with squared norms `α`, `β` and product `γ ≠ 0` orthogonal
+/// (Rutishauser's formulas). For `|ζ| > 2²⁷` the general formulas round to `t = 1/(2ζ)`, `c = 1`: that case skips
+/// their square roots and gives the same bits.
+#[inline(always)]
+fn jacobi_rotation(alpha: f64, beta: f64, gamma: f64) -> (f64, f64, f64) {
+    let zeta = (beta - alpha) / (2.0 * gamma);
+    if zeta.abs() > SMALL_ANGLE_ZETA {
+        let t = 0.5 / zeta;
+        return (1.0, t, t);
+    }
+    let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+    let c = 1.0 / (1.0 + t * t).sqrt();
+    (c, c * t, t)
+}
+
+/// Beyond this `|ζ|`, `1 + ζ²` rounds to `ζ²` and `1 + t²` to 1 (`2²⁷`, with `ζ² > 2⁵⁴`).
+const SMALL_ANGLE_ZETA: f64 = 134_217_728.0;
+
+/// Columns `p < q < N` of a fixed-size matrix as two fixed-length mutable arrays (so that the loops over them unroll).
+#[inline(always)]
+fn column_pair<const N: usize>(
+    m: &mut JointMatrix<N>,
+    p: usize,
+    q: usize,
+) -> (&mut [f64; N], &mut [f64; N]) {
+    let (head, tail) = m.as_mut_slice().split_at_mut(q * N);
+    let x = head[p * N..].first_chunk_mut::<N>();
+    let y = tail.first_chunk_mut::<N>();
+    match (x, y) {
+        (Some(x), Some(y)) => (x, y),
+        // Unreachable for p < q < N (the slices hold N·N entries); kept total rather than panicking.
+        _ => unreachable_pair(),
+    }
+}
+
+#[cold]
+fn unreachable_pair<'a, const N: usize>() -> (&'a mut [f64; N], &'a mut [f64; N]) {
+    unreachable!("column pair out of range")
+}
+
+/// `xᵀ y` with two accumulators (half the dependency chain of a sequential sum).
+#[inline(always)]
+fn dot<const N: usize>(x: &[f64; N], y: &[f64; N]) -> f64 {
+    let (mut even, mut odd) = (0.0, 0.0);
+    for (k, (a, b)) in x.iter().zip(y.iter()).enumerate() {
+        if k % 2 == 0 {
+            even += a * b;
+        } else {
+            odd += a * b;
+        }
+    }
+    even + odd
+}
+
+/// Replaces `(x, y)` by `(c·x − s·y, s·x + c·y)`, entry by entry.
+#[inline(always)]
+fn rotate<const N: usize>(x: &mut [f64; N], y: &mut [f64; N], c: f64, s: f64) {
+    for (a, b) in x.iter_mut().zip(y.iter_mut()) {
+        let (u, v) = (*a, *b);
+        *a = c * u - s * v;
+        *b = s * u + c * v;
+    }
+}
+
+/// The triangular factor `R` (`N × N`, `Rᵀ R = Aᵀ A`) of a matrix with at least `N` rows, by Givens rotations of each
+/// row of `A` into `R` in turn: `A` is only read, and `R` has the singular values and right singular vectors of `A`
+/// (`[R; 0] = Qᵀ A` with `Q` orthogonal, backward stable as Householder's QR).
+fn triangular_factor<const N: usize, R, S>(a: &Matrix<f64, R, Const<N>, S>) -> JointMatrix<N>
 where
     R: Dim,
-    C: Dim,
-    S: StorageMut<f64, R, C>,
+    S: RawStorage<f64, R, Const<N>>,
 {
-    for i in 0..m.nrows() {
-        let (a, b) = (m[(i, p)], m[(i, q)]);
-        m[(i, p)] = c * a - s * b;
-        m[(i, q)] = s * a + c * b;
+    let mut r = JointMatrix::<N>::zeros();
+    for row in a.row_iter() {
+        let mut x = [0.0; N];
+        x.iter_mut().zip(row.iter()).for_each(|(x, a)| *x = *a);
+        for j in 0..N {
+            let (diagonal, entry) = (r[(j, j)], x[j]);
+            if entry == 0.0 {
+                continue;
+            }
+            // √(a² + b²) directly when no square can overflow or underflow (the usual case), `hypot` otherwise.
+            let squares = diagonal * diagonal + entry * entry;
+            let norm = if (1e-290..1e290).contains(&squares) {
+                squares.sqrt()
+            } else {
+                diagonal.hypot(entry)
+            };
+            let inverse = 1.0 / norm;
+            let (c, s) = (diagonal * inverse, entry * inverse);
+            for k in j..N {
+                let (rk, xk) = (r[(j, k)], x[k]);
+                r[(j, k)] = c * rk + s * xk;
+                x[k] = c * xk - s * rk;
+            }
+        }
     }
+    r
 }
 
 /// `out = a · b` for a matrix `a` with a run-time number of rows and a small fixed-size `b` (`K × N`), row by row on
@@ -505,7 +672,7 @@ pub fn null_space_projector<const N: usize, R, S, SW>(
 where
     R: Dim,
     S: RawStorage<f64, R, Const<N>>,
-    SW: StorageMut<f64, R, Const<N>>,
+    SW: StorageMut<f64, R, Const<N>, RStride = U1>,
 {
     check_rows("work", a.nrows(), work.nrows())?;
     work.copy_from(a);
@@ -531,7 +698,11 @@ where
     nalgebra::DefaultAllocator:
         nalgebra::allocator::Allocator<R, Const<N>> + nalgebra::allocator::Allocator<Const<N>, R>,
 {
-    let mut work = a.clone_owned();
+    let mut work = nalgebra::OMatrix::<f64, nalgebra::Dyn, Const<N>>::from_iterator_generic(
+        nalgebra::Dyn(a.nrows()),
+        Const::<N>,
+        a.iter().copied(),
+    );
     let mut svd = ColumnSvd::default();
     svd.decompose(&mut work, policy)?;
     let (rows, cols) = (Const::<N>, R::from_usize(a.nrows()));
@@ -539,7 +710,10 @@ where
     for k in (0..N).filter(|&k| svd.is_kept(k)) {
         let sigma_sq = svd.sigma[k] * svd.sigma[k];
         // v_k u_kᵀ / σ_k = v_k w_kᵀ / σ_k²
-        out.ger(1.0 / sigma_sq, &svd.v.column(k), &work.column(k), 1.0);
+        let (v, w) = (svd.v.column(k), work.column(k));
+        for (mut column, w) in out.column_iter_mut().zip(w.iter()) {
+            column.axpy(w / sigma_sq, &v, 1.0);
+        }
     }
     Ok(out)
 }
@@ -548,7 +722,7 @@ where
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
-    use nalgebra::{Dyn, OMatrix, SMatrix};
+    use nalgebra::{DVector, Dyn, OMatrix, SMatrix};
     use proptest::prelude::*;
 
     fn matrix_strategy<const N: usize>(
@@ -593,6 +767,81 @@ mod tests {
             prop_assert!((p * p - p).norm() < 1e-12);
             prop_assert!((p - p.transpose()).norm() < 1e-15);
             prop_assert!((p.trace() - 5.0).abs() < 1e-10);
+        }
+    }
+
+    /// Every pair of columns is visited exactly once per sweep by the round-robin order.
+    #[test]
+    fn round_robin_visits_every_pair_once() {
+        for players in (2..=16).step_by(2) {
+            let mut seen = vec![0usize; players * players];
+            for round in 0..players - 1 {
+                for k in 0..players / 2 {
+                    let (p, q) = round_robin_pair(players, round, k);
+                    assert!(p < q && q < players);
+                    seen[p * players + q] += 1;
+                }
+            }
+            for p in 0..players {
+                for q in (p + 1)..players {
+                    assert_eq!(
+                        seen[p * players + q],
+                        1,
+                        "players {players}, pair ({p}, {q})"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The small-angle shortcut gives the same bits as Rutishauser's general formulas.
+    #[test]
+    fn small_angle_rotation_is_bit_identical() {
+        for zeta in [SMALL_ANGLE_ZETA * 1.000_001, -3e9, 1e12, -4.5e15, 7e40] {
+            let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+            let c = 1.0 / (1.0 + t * t).sqrt();
+            let (gamma, alpha) = (0.5, 1.0);
+            let beta = alpha + 2.0 * gamma * zeta;
+            let zeta_used = (beta - alpha) / (2.0 * gamma);
+            let t_used =
+                zeta_used.signum() / (zeta_used.abs() + (1.0 + zeta_used * zeta_used).sqrt());
+            let c_used = 1.0 / (1.0 + t_used * t_used).sqrt();
+            assert_eq!(
+                jacobi_rotation(alpha, beta, gamma),
+                (c_used, c_used * t_used, t_used)
+            );
+            assert_eq!(c, 1.0);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// A warm start from the decomposition of a nearby matrix gives the same pseudo-inverse and projector as a cold
+        /// start, for square and tall matrices.
+        #[test]
+        fn warm_start_matches_cold_start(rows in 6usize..10, seed in matrix_strategy::<6>(10), step in matrix_strategy::<6>(10)) {
+            let a = seed.rows(0, rows).into_owned();
+            let nearby = &a + step.rows(0, rows) * 1e-3;
+            let r = DVector::from_fn(rows, |i, _| (i as f64 * 0.7).sin());
+            let policy = RankPolicy::default();
+            let mut warm = ColumnSvd::<6>::default();
+            warm.decompose_warm(&mut a.clone(), &policy, 0.0).unwrap();
+            let mut w_warm = nearby.clone();
+            warm.decompose_warm(&mut w_warm, &policy, 0.0).unwrap();
+            let mut cold = ColumnSvd::<6>::default();
+            let mut w_cold = nearby.clone();
+            cold.decompose(&mut w_cold, &policy).unwrap();
+            prop_assert_eq!(warm.rank(), cold.rank());
+            let (mut x_warm, mut x_cold) = (JointVector::<6>::zeros(), JointVector::<6>::zeros());
+            warm.solve(&w_warm, &r, VelocityInverse::Truncated, &mut x_warm).unwrap();
+            cold.solve(&w_cold, &r, VelocityInverse::Truncated, &mut x_cold).unwrap();
+            let scale = 1.0 + x_cold.norm();
+            prop_assert!((x_warm - x_cold).norm() < 1e-11 * scale * scale);
+            let (mut p_warm, mut p_cold) = (JointMatrix::<6>::identity(), JointMatrix::<6>::identity());
+            warm.subtract_row_space_projector(&mut p_warm);
+            cold.subtract_row_space_projector(&mut p_cold);
+            prop_assert!((p_warm - p_cold).norm() < 1e-12);
         }
     }
 

@@ -163,7 +163,8 @@ impl<const N: usize> StackSolution<N> {
 pub struct StackWorkspace<const N: usize> {
     limited: TaskJacobian<N>,
     residual: DVector<f64>,
-    svd: ColumnSvd<N>,
+    /// One decomposition per level, so that each level's is warm-started from its previous solve.
+    svds: Vec<ColumnSvd<N>>,
     step: JointVector<N>,
     solution: StackSolution<N>,
 }
@@ -180,7 +181,7 @@ impl<const N: usize> StackWorkspace<N> {
         Self {
             limited: TaskJacobian::zeros(max_rows.max(1)),
             residual: DVector::zeros(max_rows.max(1)),
-            svd: ColumnSvd::default(),
+            svds: vec![ColumnSvd::default(); max_levels],
             step: JointVector::zeros(),
             solution: StackSolution {
                 velocity: JointVector::zeros(),
@@ -209,24 +210,24 @@ pub fn solve_stack<'w, const N: usize>(
     order: &[usize],
 ) -> Result<&'w StackSolution<N>, StackError> {
     parameters.validate()?;
-    if order.len() > workspace.solution.levels.capacity() {
+    if order.len() > workspace.svds.len() {
         return Err(StackError::CapacityExceeded {
             what: "levels",
             found: order.len(),
-            capacity: workspace.solution.levels.capacity(),
+            capacity: workspace.svds.len(),
         });
     }
     let StackWorkspace {
         limited,
         residual,
-        svd,
+        svds,
         step,
         solution,
     } = workspace;
     solution.velocity.fill(0.0);
     solution.projector.fill_with_identity();
     solution.levels.clear();
-    for (level, &index) in order.iter().enumerate() {
+    for ((level, &index), svd) in order.iter().enumerate().zip(svds.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
         // r = −λ_i e_i − J_i q̇_{i−1}
@@ -241,7 +242,7 @@ pub fn solve_stack<'w, const N: usize>(
         } else {
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
-        svd.decompose_with_scale(&mut w, &parameters.rank_policy, task.jacobian().norm())
+        svd.decompose_warm(&mut w, &parameters.rank_policy, task.jacobian().norm())
             .map_err(|source| StackError::Linalg { level, source })?;
         svd.solve(&w, &r, parameters.velocity_inverse, step)
             .map_err(|source| StackError::Linalg { level, source })?;
