@@ -260,7 +260,8 @@ pub struct StackController<const N: usize> {
     trial_order: Vec<usize>,
     criteria: Vec<TaskCriteria>,
     jacobian_work: TaskJacobian<N>,
-    svd: ColumnSvd<N>,
+    /// One decomposition per task, each warm-started from the same task's previous criteria.
+    svds: Vec<ColumnSvd<N>>,
     events: Vec<StackEvent>,
 }
 
@@ -289,7 +290,7 @@ impl<const N: usize> StackController<N> {
             trial_order: Vec::with_capacity(tasks.len()),
             criteria: Vec::with_capacity(tasks.len()),
             jacobian_work: TaskJacobian::zeros(max_rows),
-            svd: ColumnSvd::default(),
+            svds: vec![ColumnSvd::default(); tasks.len()],
             events: Vec::with_capacity(4 * tasks.len() + 8),
         })
         .map(|mut controller| {
@@ -562,18 +563,17 @@ impl<const N: usize> StackController<N> {
         let policy = law.stack_parameters().rank_policy;
         let gradient_norm = gradient.norm();
         for &index in &self.stacked {
-            let Some(task) = tasks.get(index) else {
+            let (Some(task), Some(svd)) = (tasks.get(index), self.svds.get_mut(index)) else {
                 continue;
             };
             let rows = task.rows();
             let mut work = self.jacobian_work.rows_mut(0, rows);
             work.copy_from(task.jacobian());
-            if self.svd.decompose(&mut work, &policy).is_err() {
+            if svd.decompose_warm(&mut work, &policy, 0.0).is_err() {
                 continue;
             }
             let mut direction = JointVector::zeros(); // J_i⁺ e_i
-            if self
-                .svd
+            if svd
                 .solve(
                     &work,
                     task.error(),
@@ -591,7 +591,7 @@ impl<const N: usize> StackController<N> {
             } else {
                 0.0
             };
-            let c2_prime = self.svd.row_space_component_norm(gradient);
+            let c2_prime = svd.row_space_component_norm(gradient);
             let c2 = (gradient_norm * gradient_norm - c2_prime * c2_prime)
                 .max(0.0)
                 .sqrt();
