@@ -256,11 +256,12 @@ impl<const N: usize> ColumnSvd<N> {
         R: Dim,
         S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
-        if !all_finite(work) {
+        // ‖A‖_F² in one pass; a NaN or an infinity makes it non-finite (so does an overflow: then the entries decide).
+        let scale = work.norm_squared();
+        if !scale.is_finite() && !all_finite(work) {
             return Err(LinalgError::NonFiniteMatrix);
         }
         let rows = work.nrows();
-        let scale = work.norm_squared();
         let age = match self.basis_age {
             Some(age) if warm && rows >= N && age < WARM_RESTART => Some(age),
             _ => None,
