@@ -815,6 +815,24 @@ mod tests {
         }
     }
 
+    /// A long warm-started sequence (a slowly moving 8 × 6 matrix, as in a control loop) keeps V orthogonal to
+    /// 1e−13: the periodic cold start bounds the drift of rotating the same basis.
+    #[test]
+    fn warm_started_basis_stays_orthogonal() {
+        let a = OMatrix::<f64, Dyn, Const<6>>::from_fn(8, |i, j| ((i * 6 + j) as f64 * 0.37).sin());
+        let d =
+            OMatrix::<f64, Dyn, Const<6>>::from_fn(8, |i, j| ((i * 7 + 3 * j) as f64 * 0.91).cos());
+        let mut svd = ColumnSvd::<6>::default();
+        for k in 0..3000 {
+            let mut w = &a + &d * (1e-3 * k as f64);
+            svd.decompose_warm(&mut w, &RankPolicy::default(), 0.0)
+                .unwrap();
+            let v = svd.right_vectors();
+            let drift = (v.transpose() * v - JointMatrix::<6>::identity()).norm();
+            assert!(drift < 1e-13, "step {k}: ‖VᵀV − I‖ = {drift}");
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
 
