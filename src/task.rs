@@ -81,7 +81,7 @@ pub enum TaskError {
 }
 
 /// The evaluated task: error `e_i` (`m_i`), Jacobian `J_i` (`m_i × N`) and gain `λ_i` (s⁻¹), plus, for a sensor-based
-/// task, its interaction matrix `L_i` (`m_i × 6`, with `J_i = L_i W J_q`, MATH [M42]; zero for joint-space tasks). Its
+/// task, its interaction matrix `L_i` (`m_i × 6`, with `J_i = L_i W J_q`, MATH \[M42\]; zero for joint-space tasks). Its
 /// storage is allocated once, by [`TaskValue::new`] or [`TaskValue::for_task`]; evaluating a task only overwrites it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskValue<const N: usize> {
