@@ -205,6 +205,9 @@ mod figures {
     use crate::sim::Run;
     use std::path::Path;
 
+    /// How many iterations before the first removal the criteria figure shows.
+    const CRITERIA_WINDOW_BEFORE: usize = 450;
+
     /// What the figures need besides the run: the camera (for pixels) and the desired image.
     #[derive(Debug, Clone, Copy)]
     pub struct FigureContext<'a> {
@@ -232,8 +235,9 @@ mod figures {
             .collect()
     }
 
-    /// Writes the figures of `run` into `out_dir` as `{name}_joints`, `{name}_errors`, `{name}_image` and, when the run
-    /// computed criteria, `{name}_criteria` (PNG and SVG each). A run without any iteration has no figure.
+    /// Writes the figures of `run` into `out_dir` as `{name}_joints` (Fig. 5–7), `{name}_errors`, `{name}_image` and,
+    /// when the run computed criteria, `{name}_criteria` (Fig. 8: the window before the first removal, or the whole
+    /// run), PNG and SVG each. A run without any iteration has no figure.
     ///
     /// # Errors
     /// [`PlotError`] on I/O or invalid data (an empty run).
@@ -319,34 +323,49 @@ mod figures {
             ..TrajectoryPlot::default()
         };
         files.push(image.render(out_dir, &format!("{name}_image"))?);
+        // Fig. 8: the criteria around the first removal (the whole run without one), for the tasks stacked at each
+        // iteration; 0 where the gradient is zero and the criteria are undefined (as the paper plots them).
+        let window = match run.events.iter().find(|e| e.kind == EventKind::Remove) {
+            Some(removal) => {
+                removal.iteration.saturating_sub(CRITERIA_WINDOW_BEFORE)..removal.iteration + 1
+            }
+            None => 0..run.records.len(),
+        };
+        let records =
+            &run.records[window.start.min(run.records.len())..window.end.min(run.records.len())];
+        let any_criteria = records.iter().any(|r| !r.criteria.is_empty());
         let criteria: Vec<Series> = run
             .task_names
             .iter()
             .enumerate()
             .filter_map(|(i, task)| {
-                let points: Vec<(f64, f64)> = run
-                    .records
+                let points: Vec<(f64, f64)> = records
                     .iter()
-                    .enumerate()
-                    .filter_map(|(k, r)| {
-                        r.criteria
+                    .filter(|r| r.stacked.contains(&i))
+                    .map(|r| {
+                        let score = r
+                            .criteria
                             .iter()
                             .find(|c| c.task == i)
-                            .map(|c| (iteration(k), c.combined))
+                            .map_or(0.0, |c| c.combined);
+                        (r.iteration as f64, score)
                     })
                     .collect();
                 (!points.is_empty()).then(|| Series::new(task.clone(), points))
             })
             .collect();
-        if !criteria.is_empty() {
+        if any_criteria && !criteria.is_empty() {
             let plot = LinePlot {
                 title: format!(
                     "{name}: removal criterion S_i = (C1'_i + C2'_i)/‖∇h‖ of the stacked tasks"
                 ),
                 x_label: "iteration".into(),
-                y_label: "S_i".into(),
+                y_label: "S_i (0 where ∇h = 0)".into(),
                 series: criteria,
-                markers: event_markers(run),
+                markers: event_markers(run)
+                    .into_iter()
+                    .filter(|m| (window.start as f64..=window.end as f64).contains(&m.x))
+                    .collect(),
                 ..LinePlot::default()
             };
             files.push(plot.render(out_dir, &format!("{name}_criteria"))?);
