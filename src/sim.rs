@@ -28,7 +28,7 @@ use crate::controller::{
     ControllerError, ControllerParameters, EventKind, StackController, StackEvent, TaskCriteria,
 };
 use crate::feature::{FeatureError, Observation};
-use crate::law::ControlLaw;
+use crate::law::{ControlLaw, LawError};
 use crate::math::{JointVector, KinematicJacobian};
 use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
 use crate::target::{RectangleTarget, TargetError, TargetPlane};
@@ -466,6 +466,17 @@ impl<const N: usize> Run<N> {
     }
 }
 
+/// The point of a [`CostError::PointBehindCamera`] inside a controller error.
+fn point_behind_camera(error: &ControllerError) -> Option<usize> {
+    match error {
+        ControllerError::Cost(CostError::PointBehindCamera { point, .. })
+        | ControllerError::Law(LawError::Cost(CostError::PointBehindCamera { point, .. })) => {
+            Some(*point)
+        }
+        _ => None,
+    }
+}
+
 /// The closest (link, obstacle, signed distance) at `q`, when the scene has obstacles.
 fn closest_obstacle<const N: usize>(
     scene: &Scene<N>,
@@ -582,7 +593,19 @@ pub fn simulate<const N: usize>(
             outcome = Outcome::Converged;
             break;
         }
-        let step = controller.step(drive.law, &values, cost, &q, iteration, time)?;
+        let step = match controller.step(drive.law, &values, cost, &q, iteration, time) {
+            Ok(step) => step,
+            // The visibility cost is undefined once the (predicted) motion takes a point behind the camera: the
+            // feature is lost, as when the camera itself gets there.
+            Err(error) => match point_behind_camera(&error) {
+                Some(point) => {
+                    records.push(record);
+                    outcome = Outcome::FeatureLost { point };
+                    break;
+                }
+                None => return Err(error.into()),
+            },
+        };
         record.velocity = step.velocity;
         record.predicted_cost = step.predicted_cost;
         record.criteria = controller.criteria().to_vec();

@@ -27,16 +27,29 @@ use crate::math::{all_finite, JointVector};
 use crate::robot::{parse_urdf, ChainLink, KinematicState, KinematicsWorkspace, SerialChain};
 use nalgebra::{Isometry3, SMatrix};
 
-/// The collision shapes of the links of a chain, read from URDF `<collision>` elements (poses in the link frames).
+/// The collision shapes of the links of a chain, read from URDF `<collision>` elements.
+///
+/// Each shape is carried by a link of the chain ([`SerialChain::links`]), its pose expressed in that link's frame. A
+/// link off the chain but rigidly attached to it by fixed joints (a camera or tool link beyond the tip) has its shapes
+/// carried by the chain link it hangs from, and pairs may name it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkColliders {
-    /// `(link name, collider in the link frame)`.
-    colliders: Vec<(String, Collider)>,
+    colliders: Vec<LinkCollider>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct LinkCollider {
+    /// The link the shape belongs to.
+    link: String,
+    /// The chain link that carries it.
+    carrier: String,
+    /// The shape, posed in the carrier's frame.
+    collider: Collider,
 }
 
 impl LinkColliders {
-    /// The `<collision>` elements of the links on `chain`'s path, from the URDF text the chain was loaded from. Links
-    /// off the path are ignored.
+    /// The `<collision>` elements of the links on `chain`'s path and of the links attached to them by fixed joints,
+    /// from the URDF text the chain was loaded from. Other links are ignored.
     ///
     /// # Errors
     /// [`CostError::Robot`] for unparsable URDF, [`CostError::UnsupportedGeometry`] for a `<mesh>`,
@@ -56,18 +69,45 @@ impl LinkColliders {
         robot: &urdf_rs::Robot,
         chain: &SerialChain<N>,
     ) -> Result<Self, CostError> {
+        // (link, carrier chain link, carrier_from_link): the chain links, then whatever fixed joints attach to them.
+        let mut attached: Vec<(String, String, Isometry3<f64>)> = chain
+            .links()
+            .iter()
+            .map(|l| {
+                (
+                    l.name().to_owned(),
+                    l.name().to_owned(),
+                    Isometry3::identity(),
+                )
+            })
+            .collect();
+        let mut next = 0;
+        while let Some((parent, carrier, carrier_from_parent)) = attached.get(next).cloned() {
+            next += 1;
+            for joint in &robot.joints {
+                let child = &joint.child.link;
+                if joint.parent.link == parent
+                    && joint.joint_type == urdf_rs::JointType::Fixed
+                    && !attached.iter().any(|(name, _, _)| name == child)
+                {
+                    let origin = urdf_pose(&joint.name, &joint.origin)?;
+                    attached.push((child.clone(), carrier.clone(), carrier_from_parent * origin));
+                }
+            }
+        }
         let mut colliders = Vec::new();
-        for link in chain.links() {
-            let Some(urdf_link) = robot.links.iter().find(|l| l.name == link.name()) else {
+        for (link, carrier, carrier_from_link) in &attached {
+            let Some(urdf_link) = robot.links.iter().find(|l| &l.name == link) else {
                 continue;
             };
             for collision in &urdf_link.collision {
-                let geometry = Geometry::from_urdf(link.name(), &collision.geometry)?;
-                let origin = urdf_pose(link.name(), &collision.origin)?;
-                colliders.push((
-                    link.name().to_owned(),
-                    Collider::new(link.name(), geometry, origin)?,
-                ));
+                let geometry = Geometry::from_urdf(link, &collision.geometry)?;
+                let origin = urdf_pose(link, &collision.origin)?;
+                colliders.push(LinkCollider {
+                    link: link.clone(),
+                    carrier: carrier.clone(),
+                    collider: Collider::new(link, geometry, carrier_from_link * origin)?,
+                });
             }
         }
         Ok(Self { colliders })
@@ -83,20 +123,27 @@ impl LinkColliders {
     ) -> Result<Self, CostError> {
         let colliders = colliders
             .into_iter()
-            .map(|(name, collider)| match chain.link(&name) {
-                Some(_) => Ok((name, collider)),
-                None => Err(CostError::UnknownLink { link: name }),
+            .map(|(link, collider)| match chain.link(&link) {
+                Some(_) => Ok(LinkCollider {
+                    carrier: link.clone(),
+                    link,
+                    collider,
+                }),
+                None => Err(CostError::UnknownLink { link }),
             })
             .collect::<Result<_, CostError>>()?;
         Ok(Self { colliders })
     }
 
-    /// The colliders of one link.
-    pub fn of_link<'s>(&'s self, link: &'s str) -> impl Iterator<Item = &'s Collider> + 's {
+    /// The colliders of one link, each with the name of the chain link that carries it (posed in that link's frame).
+    pub fn of_link<'s>(
+        &'s self,
+        link: &'s str,
+    ) -> impl Iterator<Item = (&'s str, &'s Collider)> + 's {
         self.colliders
             .iter()
-            .filter(move |(name, _)| name == link)
-            .map(|(_, c)| c)
+            .filter(move |c| c.link == link)
+            .map(|c| (c.carrier.as_str(), &c.collider))
     }
 
     /// The number of colliders.
@@ -178,7 +225,10 @@ pub struct ObstaclePair {
 /// One (link collider, obstacle) term, preallocated.
 #[derive(Debug, Clone, PartialEq)]
 struct Term {
+    /// The chain link that carries the shape.
     link: ChainLink,
+    /// The name of the link the shape belongs to (the carrier or a link fixed to it).
+    name: String,
     collider: Collider,
     obstacle: usize,
     obstacle_collider: Collider,
@@ -218,11 +268,12 @@ impl<const N: usize> ObstacleCost<N> {
     ) -> Result<Self, CostError> {
         let mut terms = Vec::new();
         for pair in pairs {
-            let link = chain
-                .link(&pair.link)
-                .ok_or_else(|| CostError::UnknownLink {
-                    link: pair.link.clone(),
-                })?;
+            let unknown = || CostError::UnknownLink {
+                link: pair.link.clone(),
+            };
+            if chain.link(&pair.link).is_none() && links.of_link(&pair.link).next().is_none() {
+                return Err(unknown());
+            }
             let obstacle = obstacles
                 .iter()
                 .position(|o| o.name == pair.obstacle)
@@ -239,13 +290,16 @@ impl<const N: usize> ObstacleCost<N> {
             }
             let before = terms.len();
             let obstacle_collider = obstacles[obstacle].collider.clone();
-            terms.extend(links.of_link(&pair.link).map(|collider| Term {
-                link: link.clone(),
-                collider: collider.clone(),
-                obstacle,
-                obstacle_collider: obstacle_collider.clone(),
-                influence,
-            }));
+            for (carrier, collider) in links.of_link(&pair.link) {
+                terms.push(Term {
+                    link: chain.link(carrier).ok_or_else(unknown)?.clone(),
+                    name: pair.link.clone(),
+                    collider: collider.clone(),
+                    obstacle,
+                    obstacle_collider: obstacle_collider.clone(),
+                    influence,
+                });
+            }
             if terms.len() == before {
                 return Err(CostError::NoCollisionGeometry {
                     link: pair.link.clone(),
@@ -287,7 +341,7 @@ impl<const N: usize> ObstacleCost<N> {
             )?;
             if closest.is_none_or(|c| distance < c.distance) {
                 closest = Some(ClosestPair {
-                    link: term.link.name(),
+                    link: &term.name,
                     obstacle: self
                         .obstacles
                         .get(term.obstacle)
