@@ -503,13 +503,18 @@ impl Scenario {
                     influence_distance: spec.influence_distance_m,
                 };
                 // Check each pair alone, so the error names its field.
-                ObstacleCost::new(chain.clone(), &links, obstacles.clone(), &[pair.clone()])
-                    .map_err(|e| match e {
-                        crate::avoidance::CostError::InvalidInfluenceDistance { .. } => {
-                            invalid(&field("influence_distance_m"), e.to_string())
-                        }
-                        _ => invalid(&field("links"), e.to_string()),
-                    })?;
+                ObstacleCost::new(
+                    chain.clone(),
+                    &links,
+                    obstacles.clone(),
+                    std::slice::from_ref(&pair),
+                )
+                .map_err(|e| match e {
+                    crate::avoidance::CostError::InvalidInfluenceDistance { .. } => {
+                        invalid(&field("influence_distance_m"), e.to_string())
+                    }
+                    _ => invalid(&field("links"), e.to_string()),
+                })?;
                 pairs.push(pair);
             }
         }

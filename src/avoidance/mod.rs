@@ -19,8 +19,8 @@
 pub mod collision;
 mod composite;
 mod joint_limits;
-mod obstacles;
-mod visibility;
+pub mod obstacles;
+pub mod visibility;
 
 pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
