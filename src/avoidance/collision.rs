@@ -106,6 +106,8 @@ pub struct Collider {
     /// The parry shape and the pose of parry's shape frame in our shape frame (a rotation for the cylinder).
     shape: SharedShape,
     shape_from_parry: Isometry3<f64>,
+    /// The radius of a ball about the shape's origin that contains it (m): far pairs are dismissed on it.
+    bounding_radius: f64,
     /// A capsule is queried as its axis segment inflated by this radius (m; 0 otherwise): GJK terminates exactly on
     /// a segment, while on the rounded capsule its normal converges only to ~1e−4, which the gradient inherits.
     inflation: f64,
@@ -179,11 +181,18 @@ impl Collider {
             Geometry::Capsule { radius_m, .. } => radius_m,
             _ => 0.0,
         };
+        let bounding_radius = match geometry {
+            Geometry::Sphere { radius_m } => radius_m,
+            Geometry::Box { size_m } => 0.5 * Vector3::from(size_m).norm(),
+            Geometry::Cylinder { radius_m, length_m } => radius_m.hypot(0.5 * length_m),
+            Geometry::Capsule { radius_m, length_m } => radius_m + 0.5 * length_m,
+        };
         Ok(Self {
             geometry,
             frame_from_shape,
             shape,
             shape_from_parry,
+            bounding_radius,
             inflation,
         })
     }
@@ -218,8 +227,8 @@ pub struct Proximity {
 }
 
 /// The closest points of `first` (its frame at `base_from_first`) and `second` (at `base_from_second`) when their
-/// signed distance is below `cutoff` (m), else `None` — parry's contact query with prediction distance `cutoff`, so
-/// far pairs cost one bounding test. Allocation-free while the shapes do not penetrate (parry's EPA, used for the
+/// signed distance is below `cutoff` (m), else `None` — parry's contact query with prediction distance `cutoff`, after
+/// a bounding-ball test that dismisses far pairs without it. Allocation-free while the shapes do not penetrate (parry's EPA, used for the
 /// penetration depth of non-ball pairs, allocates).
 ///
 /// # Errors
@@ -231,6 +240,16 @@ pub fn proximity(
     base_from_second: &Isometry3<f64>,
     cutoff: f64,
 ) -> Result<Option<Proximity>, CostError> {
+    // Bounding balls farther apart than the cut-off: no query at all.
+    let centre = |c: &Collider, base_from_frame: &Isometry3<f64>| {
+        (base_from_frame * c.frame_from_shape).translation.vector
+    };
+    let gap = (centre(first, base_from_first) - centre(second, base_from_second)).norm()
+        - first.bounding_radius
+        - second.bounding_radius;
+    if gap >= cutoff {
+        return Ok(None);
+    }
     let inflation = first.inflation + second.inflation;
     let contact = query::contact(
         &first.parry_pose(base_from_first),
