@@ -1,4 +1,4 @@
-//! The task Jacobian of visual tasks on a real robot: `J = L cVe eJe` (MATH [M42]) matches central finite differences
+//! The task Jacobian of visual tasks on a real robot: `J = L cVe eJe` (MATH \[M42\]) matches central finite differences
 //! of the task error `e(q) = s(q) − s*` through the whole chain (kinematics, camera mount, projection, features).
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
