@@ -33,7 +33,9 @@
 //! ```
 //!
 //! Every push, removal and re-insertion is recorded in an event log ([`StackEvent`]) with its iteration, time and task;
-//! removals also record the predicted cost, the joint that dominates the predicted gradient, and every task's criteria.
+//! removals also record the predicted cost, the joint that dominates the predicted gradient, the cost term that dominates
+//! the predicted cost (for a [`crate::avoidance::CompositeCost`] of joint limits, obstacles and visibility), and every
+//! task's criteria.
 
 use crate::avoidance::{Cost, CostError};
 use crate::law::{
@@ -209,6 +211,9 @@ pub struct RemovalReport {
     pub threshold: f64,
     /// The joint with the largest component of the predicted gradient `∇h(q̂)` (0-based).
     pub joint: usize,
+    /// The cost term that dominates the predicted cost `h(q̂)` ([`Cost::dominant_term`]: `"joint_limits"`,
+    /// `"obstacles"`, `"visibility"`, ...).
+    pub cost: String,
     /// The criteria of every stacked task at the removal.
     pub criteria: Vec<TaskCriteria>,
 }
@@ -482,6 +487,7 @@ impl<const N: usize> StackController<N> {
                 self.parameters.allow_removal && !self.stacked.is_empty() && gradient.norm() > 0.0;
             let worsening = result.predicted_cost > result.cost;
             if may_remove && worsening && result.predicted_cost > threshold {
+                let dominant = cost.dominant_term(&predicted)?.to_owned();
                 let task = self.choose_removal();
                 self.stacked.retain(|&t| t != task);
                 self.removed.push(task);
@@ -489,6 +495,7 @@ impl<const N: usize> StackController<N> {
                     predicted_cost: result.predicted_cost,
                     threshold,
                     joint: predicted_gradient.iamax(),
+                    cost: dominant,
                     criteria: self.criteria.clone(),
                 };
                 self.record(iteration, time, EventKind::Remove, task, Some(report));

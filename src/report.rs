@@ -9,6 +9,10 @@
 //!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert", "task": str}],
 //!   "max_velocity_jump": float, "final_error_norm": float, "min_normalized_margin": float}]}
 //! ```
+//!
+//! With obstacles, `outcome` may also be `"collision"`, each run has `"min_obstacle_distance"` (m, negative when
+//! penetrating) and a collided run `"collision": {"link": str, "obstacle": str}`; a removal event names the cost term
+//! that triggered it (`"cost": "joint_limits"|"obstacles"|"visibility"`).
 
 use crate::controller::EventKind;
 use crate::scenario::{RunKind, Scenario, ScenarioError};
@@ -110,6 +114,9 @@ impl std::fmt::Display for Summary {
                 run.min_normalized_margin,
                 events.join(", ")
             )?;
+            if let Some(distance) = run.min_obstacle_distance {
+                writeln!(f, "{:<17} min obstacle distance {distance:.4} m", "")?;
+            }
         }
         Ok(())
     }
@@ -133,6 +140,18 @@ pub struct EventSummary {
     pub kind: EventKind,
     /// The task's name.
     pub task: String,
+    /// For a removal, the cost term that dominated the predicted cost (extra field).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cost: Option<String>,
+}
+
+/// Which link hit which obstacle.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CollisionSummary {
+    /// The link.
+    pub link: String,
+    /// The obstacle.
+    pub obstacle: String,
 }
 
 /// The summary of one run.
@@ -158,6 +177,13 @@ pub struct RunSummary {
     pub min_normalized_margin: f64,
     /// The point lost, for a `feature_lost` outcome (extra field).
     pub lost_point: Option<usize>,
+    /// The smallest link–obstacle signed distance over the run (m, negative when penetrating), for scenes with
+    /// obstacles (extra field).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_obstacle_distance: Option<f64>,
+    /// The link and obstacle, for a `collision` outcome (extra field).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub collision: Option<CollisionSummary>,
 }
 
 impl RunSummary {
@@ -166,7 +192,14 @@ impl RunSummary {
         let (joint, lost_point) = match &run.outcome {
             Outcome::JointLimit { joint, .. } => (Some(*joint), None),
             Outcome::FeatureLost { point } => (None, Some(*point)),
-            Outcome::Converged | Outcome::MaxIterations => (None, None),
+            Outcome::Converged | Outcome::MaxIterations | Outcome::Collision { .. } => (None, None),
+        };
+        let collision = match &run.outcome {
+            Outcome::Collision { link, obstacle, .. } => Some(CollisionSummary {
+                link: link.clone(),
+                obstacle: obstacle.clone(),
+            }),
+            _ => None,
         };
         Self {
             name: name.into(),
@@ -181,12 +214,15 @@ impl RunSummary {
                     iteration: e.iteration,
                     kind: e.kind,
                     task: run.task_names[e.task].clone(),
+                    cost: e.removal.as_ref().map(|r| r.cost.clone()),
                 })
                 .collect(),
             max_velocity_jump: run.max_velocity_jump(),
             final_error_norm: run.final_error_norm(),
             min_normalized_margin: run.min_normalized_margin(),
             lost_point,
+            min_obstacle_distance: run.min_obstacle_distance(),
+            collision,
         }
     }
 }
@@ -204,6 +240,9 @@ mod figures {
     };
     use crate::sim::Run;
     use std::path::Path;
+
+    /// How many iterations before the first removal the criteria figure shows.
+    const CRITERIA_WINDOW_BEFORE: usize = 450;
 
     /// What the figures need besides the run: the camera (for pixels) and the desired image.
     #[derive(Debug, Clone, Copy)]
@@ -232,8 +271,9 @@ mod figures {
             .collect()
     }
 
-    /// Writes the figures of `run` into `out_dir` as `{name}_joints`, `{name}_errors`, `{name}_image` and, when the run
-    /// computed criteria, `{name}_criteria` (PNG and SVG each). A run without any iteration has no figure.
+    /// Writes the figures of `run` into `out_dir` as `{name}_joints` (Fig. 5–7), `{name}_errors`, `{name}_image`, with
+    /// obstacles `{name}_obstacle_distance`, and, when the run computed criteria, `{name}_criteria` (Fig. 8: the window
+    /// before the first removal, or the whole run), PNG and SVG each. A run without any iteration has no figure.
     ///
     /// # Errors
     /// [`PlotError`] on I/O or invalid data (an empty run).
@@ -319,34 +359,67 @@ mod figures {
             ..TrajectoryPlot::default()
         };
         files.push(image.render(out_dir, &format!("{name}_image"))?);
+        // Fig. 8: the criteria around the first removal (the whole run without one), for the tasks stacked at each
+        // iteration; 0 where the gradient is zero and the criteria are undefined (as the paper plots them).
+        let window = match run.events.iter().find(|e| e.kind == EventKind::Remove) {
+            Some(removal) => {
+                removal.iteration.saturating_sub(CRITERIA_WINDOW_BEFORE)..removal.iteration + 1
+            }
+            None => 0..run.records.len(),
+        };
+        let records =
+            &run.records[window.start.min(run.records.len())..window.end.min(run.records.len())];
+        let any_criteria = records.iter().any(|r| !r.criteria.is_empty());
         let criteria: Vec<Series> = run
             .task_names
             .iter()
             .enumerate()
             .filter_map(|(i, task)| {
-                let points: Vec<(f64, f64)> = run
-                    .records
+                let points: Vec<(f64, f64)> = records
                     .iter()
-                    .enumerate()
-                    .filter_map(|(k, r)| {
-                        r.criteria
+                    .filter(|r| r.stacked.contains(&i))
+                    .map(|r| {
+                        let score = r
+                            .criteria
                             .iter()
                             .find(|c| c.task == i)
-                            .map(|c| (iteration(k), c.combined))
+                            .map_or(0.0, |c| c.combined);
+                        (r.iteration as f64, score)
                     })
                     .collect();
                 (!points.is_empty()).then(|| Series::new(task.clone(), points))
             })
             .collect();
-        if !criteria.is_empty() {
+        let distances: Vec<(f64, f64)> = run
+            .records
+            .iter()
+            .enumerate()
+            .filter_map(|(k, r)| r.obstacle_distance.map(|d| (iteration(k), d)))
+            .collect();
+        if !distances.is_empty() {
+            let plot = LinePlot {
+                title: format!("{name}: smallest link–obstacle distance"),
+                x_label: "iteration".into(),
+                y_label: "distance (m)".into(),
+                series: vec![Series::new("min distance", distances)],
+                markers: event_markers(run),
+                horizontal_lines: vec![HorizontalLine::new(0.0, "contact")],
+                ..LinePlot::default()
+            };
+            files.push(plot.render(out_dir, &format!("{name}_obstacle_distance"))?);
+        }
+        if any_criteria && !criteria.is_empty() {
             let plot = LinePlot {
                 title: format!(
                     "{name}: removal criterion S_i = (C1'_i + C2'_i)/‖∇h‖ of the stacked tasks"
                 ),
                 x_label: "iteration".into(),
-                y_label: "S_i".into(),
+                y_label: "S_i (0 where ∇h = 0)".into(),
                 series: criteria,
-                markers: event_markers(run),
+                markers: event_markers(run)
+                    .into_iter()
+                    .filter(|m| (window.start as f64..=window.end as f64).contains(&m.x))
+                    .collect(),
                 ..LinePlot::default()
             };
             files.push(plot.render(out_dir, &format!("{name}_criteria"))?);

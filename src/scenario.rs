@@ -7,6 +7,20 @@
 //! Field names carry their units (`translation_m`, `rpy_deg`); unknown fields are errors, so a value written in the
 //! wrong unit under the wrong name is caught, and every semantic error names its field.
 //!
+//! Optional sections add avoidance beyond the joint limits (both join the avoidance cost of the runs with avoidance):
+//!
+//! ```toml
+//! [[obstacles]]                       # a world obstacle, pose in the robot base frame
+//! name = "post"
+//! shape = { sphere = { radius_m = 0.05 } }   # or box = { size_m = [..] }, cylinder/capsule = { radius_m, length_m }
+//! pose = { translation_m = [0.1, 0.2, 0.3], rpy_deg = [0.0, 0.0, 0.0] }
+//! influence_distance_m = 0.1          # the cost is zero farther than this
+//! links = ["afma6_camera", "afma6_end_effector"]   # links (with URDF <collision> shapes) kept away from it
+//!
+//! [visibility]
+//! margin_px = 30.0                    # the cost grows when a target point comes closer than this to the border
+//! ```
+//!
 //! From one scenario, [`Scenario::run`] runs any of the paper's four [`RunKind`]s (MATH §9):
 //!
 //! | run | tasks | avoidance | removal |
@@ -23,6 +37,7 @@
 //! # Ok::<(), servostack::scenario::ScenarioError>(())
 //! ```
 
+use crate::avoidance::{Geometry, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
 use crate::controller::{ControllerParameters, RemovalCriterion};
 use crate::feature::InteractionSource;
@@ -239,6 +254,30 @@ pub struct AvoidanceSpec {
     pub transition_gain: Option<f64>,
 }
 
+/// A world obstacle and the links it must be kept away from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// Its name (reported on collision).
+    pub name: String,
+    /// Its shape (sizes in m).
+    pub shape: Geometry,
+    /// Its pose in the robot base frame.
+    pub pose: PoseSpec,
+    /// `d_i` (m, > 0): the obstacle cost is zero for links farther than this.
+    pub influence_distance_m: f64,
+    /// The links (with URDF `<collision>` shapes) paired with it.
+    pub links: Vec<String>,
+}
+
+/// The visibility cost ([`crate::avoidance::VisibilityCost`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VisibilitySpec {
+    /// The band along the image border (px) where the cost is active.
+    pub margin_px: f64,
+}
+
 /// A complete scenario.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -269,6 +308,12 @@ pub struct Scenario {
     /// Period, budget, convergence threshold, image margin.
     #[serde(default)]
     pub simulation: SimulationParameters,
+    /// World obstacles (none by default).
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    /// The visibility cost (off by default).
+    #[serde(default)]
+    pub visibility: Option<VisibilitySpec>,
     /// The directory relative paths are resolved against (set by [`Scenario::from_file`]).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
@@ -391,6 +436,16 @@ impl Scenario {
             SimError::Cost(cost) => invalid("avoidance.activation_ratio", cost.to_string()),
             other => other.into(),
         })?;
+        let mut scene = scene;
+        if !self.obstacles.is_empty() {
+            let obstacles = self.obstacle_cost(scene.chain().clone())?;
+            scene = scene.with_obstacles(obstacles);
+        }
+        if let Some(visibility) = self.visibility {
+            scene = scene
+                .with_visibility_margin(visibility.margin_px)
+                .map_err(|e| invalid("visibility.margin_px", e.to_string()))?;
+        }
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
@@ -415,6 +470,65 @@ impl Scenario {
         })
     }
 
+    /// The obstacle cost of the `[[obstacles]]` list, with the link shapes of the robot's URDF.
+    fn obstacle_cost<const N: usize>(
+        &self,
+        chain: SerialChain<N>,
+    ) -> Result<ObstacleCost<N>, ScenarioError> {
+        let urdf = match &self.robot {
+            RobotSpec::Builtin { builtin } => builtin::urdf_by_name(builtin)?.to_owned(),
+            RobotSpec::Urdf { urdf, .. } => {
+                let path = self.resolve(urdf);
+                std::fs::read_to_string(&path).map_err(|e| RobotError::File {
+                    path: path.display().to_string(),
+                    message: e.to_string(),
+                })?
+            }
+        };
+        let links = LinkColliders::from_urdf_str(&urdf, &chain)
+            .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
+        let mut obstacles = Vec::with_capacity(self.obstacles.len());
+        let mut pairs = Vec::new();
+        for (i, spec) in self.obstacles.iter().enumerate() {
+            let field = |name: &str| format!("obstacles[{i}].{name}");
+            let pose = spec.pose.to_isometry(&field("pose"))?;
+            obstacles.push(
+                Obstacle::new(&spec.name, spec.shape, pose)
+                    .map_err(|e| invalid(&field("shape"), e.to_string()))?,
+            );
+            for link in &spec.links {
+                let pair = ObstaclePair {
+                    link: link.clone(),
+                    obstacle: spec.name.clone(),
+                    influence_distance: spec.influence_distance_m,
+                };
+                // Check each pair alone, so the error names its field.
+                ObstacleCost::new(
+                    chain.clone(),
+                    &links,
+                    obstacles.clone(),
+                    std::slice::from_ref(&pair),
+                )
+                .map_err(|e| match e {
+                    crate::avoidance::CostError::InvalidInfluenceDistance { .. } => {
+                        invalid(&field("influence_distance_m"), e.to_string())
+                    }
+                    _ => invalid(&field("links"), e.to_string()),
+                })?;
+                pairs.push(pair);
+            }
+        }
+        ObstacleCost::new(chain, &links, obstacles, &pairs)
+            .map_err(|e| invalid("obstacles", e.to_string()))
+    }
+
+    fn resolve(&self, path: &Path) -> PathBuf {
+        match &self.base_dir {
+            Some(dir) if path.is_relative() => dir.join(path),
+            _ => path.to_path_buf(),
+        }
+    }
+
     fn robot<const N: usize>(&self) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
         match &self.robot {
             RobotSpec::Builtin { builtin } => {
@@ -427,10 +541,7 @@ impl Scenario {
                 tip_link,
                 camera_mount,
             } => {
-                let path = match &self.base_dir {
-                    Some(dir) if urdf.is_relative() => dir.join(urdf),
-                    _ => urdf.clone(),
-                };
+                let path = self.resolve(urdf);
                 let chain = SerialChain::from_urdf_file(&path, base_link, tip_link)?;
                 let mount = camera_mount.to_isometry("robot.camera_mount")?;
                 Ok((chain, EyeInHand::new(mount)?))

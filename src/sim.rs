@@ -12,18 +12,23 @@
 //!    every task is below the convergence threshold, the run has **converged**;
 //! 4. one controller iteration ([`StackController::step`]) gives `q̇`; explicit Euler `q ← q + Δt q̇`;
 //! 5. a joint outside `[q^min, q^max]` ends the run as **joint limit** (D11: a real robot stops at its limit), with the
-//!    joint, the iteration and the tasks stacked.
+//!    joint, the iteration and the tasks stacked; when the scene has obstacles, a link–obstacle signed distance `≤ 0`
+//!    ends it as **collision**.
+//!
+//! The avoidance cost given to the law and the controller is the sum ([`CompositeCost`]) of the joint-limit cost and,
+//! when the scene has them, the obstacle cost ([`Scene::with_obstacles`]) and the visibility cost
+//! ([`Scene::with_visibility_margin`]).
 //!
 //! The run log ([`Run`]) keeps, per iteration, `q`, `q̇`, each task's error norm, the stack, the cost and its
 //! prediction, the criteria, and the image points; and the controller's event log.
 
-use crate::avoidance::{Cost, CostError, JointLimits};
+use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, EventKind, StackController, StackEvent, TaskCriteria,
 };
 use crate::feature::{FeatureError, Observation};
-use crate::law::ControlLaw;
+use crate::law::{ControlLaw, LawError};
 use crate::math::{JointVector, KinematicJacobian};
 use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
 use crate::target::{RectangleTarget, TargetError, TargetPlane};
@@ -90,6 +95,8 @@ pub struct Scene<const N: usize> {
     target: RectangleTarget,
     base_from_object: Isometry3<f64>,
     limits: JointLimits<N>,
+    obstacles: Option<ObstacleCost<N>>,
+    visibility: Option<VisibilityCost<N>>,
 }
 
 /// What the camera sees at one configuration.
@@ -143,7 +150,56 @@ impl<const N: usize> Scene<N> {
             target,
             base_from_object,
             limits,
+            obstacles: None,
+            visibility: None,
         })
+    }
+
+    /// The scene with world obstacles: their cost joins the avoidance cost, and a link–obstacle contact ends a run
+    /// as [`Outcome::Collision`].
+    pub fn with_obstacles(mut self, obstacles: ObstacleCost<N>) -> Self {
+        self.obstacles = Some(obstacles);
+        self
+    }
+
+    /// The scene with the visibility cost of its target points ([`VisibilityCost`]), active within `margin_px`
+    /// pixels of the image border.
+    ///
+    /// # Errors
+    /// [`SimError::Cost`] for an invalid margin.
+    pub fn with_visibility_margin(mut self, margin_px: f64) -> Result<Self, SimError> {
+        let points = self.target.points().map(|p| self.base_from_object * p);
+        self.visibility = Some(VisibilityCost::new(
+            self.chain.clone(),
+            self.camera,
+            &self.intrinsics,
+            &points,
+            margin_px,
+        )?);
+        Ok(self)
+    }
+
+    /// The obstacle cost, if the scene has obstacles.
+    pub fn obstacles(&self) -> Option<&ObstacleCost<N>> {
+        self.obstacles.as_ref()
+    }
+
+    /// The visibility cost, if enabled.
+    pub fn visibility(&self) -> Option<&VisibilityCost<N>> {
+        self.visibility.as_ref()
+    }
+
+    /// The avoidance cost of the scene: joint limits, plus obstacles and visibility when present (built once per
+    /// run; evaluating it allocates nothing).
+    pub fn avoidance_cost(&self) -> CompositeCost<'_, N> {
+        let mut cost = CompositeCost::new().with(&self.limits);
+        if let Some(obstacles) = &self.obstacles {
+            cost.push(obstacles);
+        }
+        if let Some(visibility) = &self.visibility {
+            cost.push(visibility);
+        }
+        cost
     }
 
     /// The robot.
@@ -270,16 +326,28 @@ pub enum Outcome {
     },
     /// The iteration budget ran out.
     MaxIterations,
+    /// A link touched or penetrated an obstacle (signed distance `≤ 0`).
+    Collision {
+        /// The link.
+        link: String,
+        /// The obstacle.
+        obstacle: String,
+        /// Their signed distance (m, `≤ 0`).
+        distance: f64,
+        /// The tasks stacked when it happened.
+        stacked: Vec<usize>,
+    },
 }
 
 impl Outcome {
-    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`.
+    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`, `collision`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Converged => "converged",
             Self::JointLimit { .. } => "joint_limit",
             Self::FeatureLost { .. } => "feature_lost",
             Self::MaxIterations => "max_iterations",
+            Self::Collision { .. } => "collision",
         }
     }
 }
@@ -307,6 +375,8 @@ pub struct Record<const N: usize> {
     pub criteria: Vec<TaskCriteria>,
     /// The image points (normalised).
     pub image: [ImagePoint; 4],
+    /// The smallest link–obstacle signed distance at `q` (m), when the scene has obstacles.
+    pub obstacle_distance: Option<f64>,
 }
 
 /// A finished run: its outcome, the run log and the event log.
@@ -363,6 +433,20 @@ impl<const N: usize> Run<N> {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The smallest link–obstacle signed distance over the run (m; negative when penetrating), including the
+    /// configuration where a collision ended it; `None` without obstacles.
+    pub fn min_obstacle_distance(&self) -> Option<f64> {
+        let at_collision = match &self.outcome {
+            Outcome::Collision { distance, .. } => Some(*distance),
+            _ => None,
+        };
+        self.records
+            .iter()
+            .filter_map(|r| r.obstacle_distance)
+            .chain(at_collision)
+            .reduce(f64::min)
+    }
+
     /// The names of the tasks stacked at the end.
     pub fn stacked_at_end(&self) -> Vec<&str> {
         self.records
@@ -382,6 +466,30 @@ impl<const N: usize> Run<N> {
     }
 }
 
+/// The point of a [`CostError::PointBehindCamera`] inside a controller error.
+fn point_behind_camera(error: &ControllerError) -> Option<usize> {
+    match error {
+        ControllerError::Cost(CostError::PointBehindCamera { point, .. })
+        | ControllerError::Law(LawError::Cost(CostError::PointBehindCamera { point, .. })) => {
+            Some(*point)
+        }
+        _ => None,
+    }
+}
+
+/// The closest (link, obstacle, signed distance) at `q`, when the scene has obstacles.
+fn closest_obstacle<const N: usize>(
+    scene: &Scene<N>,
+    q: &JointVector<N>,
+) -> Result<Option<(String, String, f64)>, SimError> {
+    let Some(obstacles) = &scene.obstacles else {
+        return Ok(None);
+    };
+    Ok(obstacles
+        .closest_pair(q)?
+        .map(|c| (c.link.to_owned(), c.obstacle.to_owned(), c.distance)))
+}
+
 /// How the tasks are driven in a run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Drive<'a> {
@@ -389,8 +497,9 @@ pub struct Drive<'a> {
     pub law: &'a ControlLaw,
     /// The controller's parameters (push, removal).
     pub controller: ControllerParameters,
-    /// Whether the joint-limit cost is given to the law and the controller (projected-gradient avoidance and
-    /// prediction); without it, `κ` has no effect and no task is ever removed.
+    /// Whether the scene's avoidance cost ([`Scene::avoidance_cost`]: joint limits, plus obstacles and visibility when
+    /// the scene has them) is given to the law and the controller (projected-gradient avoidance and prediction);
+    /// without it, `κ` has no effect and no task is ever removed.
     pub avoid_joint_limits: bool,
 }
 
@@ -426,9 +535,10 @@ pub fn simulate<const N: usize>(
         ..drive.controller
     };
     let mut controller = StackController::new(controller_parameters, &values)?;
+    let avoidance = scene.avoidance_cost();
     let cost: Option<&dyn Cost<N>> = drive
         .avoid_joint_limits
-        .then_some(&scene.limits as &dyn Cost<N>);
+        .then_some(&avoidance as &dyn Cost<N>);
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
     let mut records = Vec::with_capacity(parameters.max_iterations.min(100_000));
@@ -471,6 +581,7 @@ pub fn simulate<const N: usize>(
             predicted_cost: 0.0,
             criteria: Vec::new(),
             image: view.points,
+            obstacle_distance: closest_obstacle(scene, &q)?.map(|(_, _, d)| d),
         };
         if controller.is_complete()
             && record
@@ -482,16 +593,38 @@ pub fn simulate<const N: usize>(
             outcome = Outcome::Converged;
             break;
         }
-        let step = controller.step(drive.law, &values, cost, &q, iteration, time)?;
+        let step = match controller.step(drive.law, &values, cost, &q, iteration, time) {
+            Ok(step) => step,
+            // The visibility cost is undefined once the (predicted) motion takes a point behind the camera: the
+            // feature is lost, as when the camera itself gets there.
+            Err(error) => match point_behind_camera(&error) {
+                Some(point) => {
+                    records.push(record);
+                    outcome = Outcome::FeatureLost { point };
+                    break;
+                }
+                None => return Err(error.into()),
+            },
+        };
         record.velocity = step.velocity;
         record.predicted_cost = step.predicted_cost;
         record.criteria = controller.criteria().to_vec();
         q += step.velocity * parameters.period;
         let hit = scene.limits.violated_joint(&q);
+        let contact = closest_obstacle(scene, &q)?.filter(|(_, _, d)| *d <= 0.0);
         let stacked = record.stacked.clone();
         records.push(record);
         if let Some(joint) = hit {
             outcome = Outcome::JointLimit { joint, stacked };
+            break;
+        }
+        if let Some((link, obstacle, distance)) = contact {
+            outcome = Outcome::Collision {
+                link,
+                obstacle,
+                distance,
+                stacked,
+            };
             break;
         }
     }

@@ -1,4 +1,5 @@
-//! The steady-state control step allocates nothing on the heap (DESIGN principle 2).
+//! The real-time path allocates nothing on the heap (DESIGN principle 2): the steady-state control step, the
+//! features, the kinematics, the camera and the projection. Counted per thread by a global allocator.
 
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;
@@ -7,10 +8,17 @@ mod counting_allocator;
 mod servo_loop;
 
 use counting_allocator::allocations_during;
+use nalgebra::{Dyn, OMatrix, Point3, SMatrix, U6};
 use servo_loop::{ServoLoop, Variant};
 use servostack::avoidance::{Cost, JointLimits};
+use servostack::camera::{project_points, ImagePoint};
+use servostack::feature::{
+    AreaNormalization, Centroid, DiagonalAngle, Feature, FeatureSet, InteractionSource, Observation,
+};
 use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 use servostack::math::JointVector;
+use servostack::robot::{builtin, KinematicsWorkspace};
+use servostack::target::RectangleTarget;
 use servostack::task::{LinearTask, Task, TaskJacobian, TaskValue};
 
 #[test]
@@ -122,4 +130,63 @@ fn paper_controller_step_allocates_nothing() {
 #[test]
 fn classical_controller_step_allocates_nothing() {
     assert_servo_loop_allocates_nothing(ServoLoop::classical(), "classical");
+}
+
+#[test]
+fn feature_computations_allocate_nothing() {
+    let desired = [(-0.2, -0.1), (0.2, -0.1), (0.2, 0.1), (-0.2, 0.1)]
+        .map(|(x, y)| ImagePoint::new(x, y, 0.5));
+    let desired = Observation::new(&desired, None).unwrap();
+    let n = AreaNormalization::from_desired(&desired, 0.5).unwrap();
+    let sets = [
+        FeatureSet::paper_full(Centroid::new(0.5).unwrap(), DiagonalAngle::default(), n),
+        FeatureSet::visp_moments(n),
+    ];
+    let current = [(-0.21, -0.09), (0.19, -0.11), (0.2, 0.12), (-0.2, 0.1)]
+        .map(|(x, y)| ImagePoint::new(x, y, 0.52));
+    let (mut s, mut s_star, mut e) = ([0.0; 6], [0.0; 6], [0.0; 6]);
+    let mut l = OMatrix::<f64, Dyn, U6>::zeros(6);
+    let allocations = allocations_during(|| {
+        for set in &sets {
+            set.value(&desired, &mut s_star).unwrap();
+            let obs = Observation::new(&current, None).unwrap();
+            set.value(&obs, &mut s).unwrap();
+            for source in [InteractionSource::Exact, InteractionSource::PaperApprox] {
+                set.interaction(&obs, source, l.rows_mut(0, 6)).unwrap();
+            }
+            set.interaction(&desired, InteractionSource::Desired, l.rows_mut(0, 6))
+                .unwrap();
+            set.error(&s, &s_star, &mut e).unwrap();
+        }
+    });
+    assert_eq!(allocations, 0);
+    assert!(e.iter().any(|v| *v != 0.0), "the features were computed");
+}
+
+#[test]
+fn kinematics_camera_and_projection_allocate_nothing() {
+    let robot = builtin::rail7().unwrap();
+    let target = RectangleTarget::new(0.2, 0.1).unwrap();
+    let mut ws = KinematicsWorkspace::new();
+    let mut image = [ImagePoint::default(); 4];
+    let mut point_jacobian = SMatrix::<f64, 3, 7>::zeros();
+    let link = robot.chain.link("rail7_cover").unwrap().clone();
+    let mut checksum = 0.0;
+    let allocations = allocations_during(|| {
+        for k in 0..100 {
+            let q = JointVector::<7>::from_element(0.01 * k as f64);
+            let state = robot.chain.kinematics(&mut ws, &q).unwrap();
+            let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
+            let camera_jacobian = robot.camera.camera_jacobian(state.tip_jacobian());
+            state
+                .point_jacobian(&link, &Point3::new(0.1, 0.2, 0.3), &mut point_jacobian)
+                .unwrap();
+            // The target 0.5 m in front of the camera.
+            let c_from_o = nalgebra::Isometry3::translation(0.0, 0.0, 0.5);
+            project_points(&c_from_o, target.points(), &mut image).unwrap();
+            checksum += image[0].depth + camera_jacobian[(0, 0)] + base_from_camera.translation.x;
+        }
+    });
+    assert_eq!(allocations, 0);
+    assert!(checksum.is_finite());
 }

@@ -122,6 +122,10 @@ impl<const N: usize> JointLimits<N> {
 }
 
 impl<const N: usize> Cost<N> for JointLimits<N> {
+    fn name(&self) -> &str {
+        "joint_limits"
+    }
+
     /// \[M20\].
     fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
         if !all_finite(q) {

@@ -6,14 +6,30 @@
 //! disturbs a stacked task. The stack controller also predicts `h` ahead in time to decide when to remove a task
 //! (MATH §6.2).
 //!
-//! Costs implement [`Cost`]. This module provides the joint-limit cost of Chaumette & Marchand ([`JointLimits`],
-//! MATH \[M19\]–\[M21\]).
+//! Costs implement [`Cost`]. This module provides
+//!
+//! * the joint-limit cost of Chaumette & Marchand ([`JointLimits`], MATH \[M19\]–\[M21\]);
+//! * the obstacle cost ([`ObstacleCost`]): link collision shapes (from the URDF `<collision>` elements,
+//!   [`LinkColliders`]) against world obstacles ([`Obstacle`]), zero beyond an influence distance;
+//! * the visibility cost ([`VisibilityCost`]): zero while every target point is inside the image with a margin;
+//! * their sum ([`CompositeCost`]), which also tells which term dominates (for the controller's event log).
+//!
+//! The geometry (parry3d-f64) stays behind [`collision`]; every public type here speaks nalgebra.
 
+pub mod collision;
+mod composite;
 mod joint_limits;
+pub mod obstacles;
+pub mod visibility;
 
+pub use collision::{Collider, Geometry, Proximity};
+pub use composite::CompositeCost;
 pub use joint_limits::JointLimits;
+pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
+pub use visibility::VisibilityCost;
 
 use crate::math::JointVector;
+use crate::robot::RobotError;
 
 /// Errors of costs.
 #[non_exhaustive]
@@ -38,6 +54,84 @@ pub enum CostError {
     /// The configuration holds a NaN or an infinity.
     #[error("joint configuration holds a non-finite value")]
     NonFiniteConfiguration,
+    /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>`).
+    #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule)")]
+    UnsupportedGeometry {
+        /// The link.
+        link: String,
+        /// What was found.
+        geometry: String,
+    },
+    /// A size or pose of a collision shape is not finite, or a size is not > 0.
+    #[error("{owner:?}: collision shape {field} = {value} must be finite (and > 0 for a size)")]
+    InvalidGeometry {
+        /// The link or obstacle.
+        owner: String,
+        /// The offending field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// parry has no distance algorithm for this pair of shapes.
+    #[error("no distance query between {first:?} and {second:?}")]
+    UnsupportedShapePair {
+        /// The first shape.
+        first: Geometry,
+        /// The second shape.
+        second: Geometry,
+    },
+    /// A pair names a link that is not on the robot's chain.
+    #[error("unknown link {link:?} (not on the chain from base to tip)")]
+    UnknownLink {
+        /// The name given.
+        link: String,
+    },
+    /// A pair names a link of the chain that has no collision geometry.
+    #[error("link {link:?} has no collision geometry")]
+    NoCollisionGeometry {
+        /// The link.
+        link: String,
+    },
+    /// A pair names an obstacle that does not exist.
+    #[error("unknown obstacle {obstacle:?}")]
+    UnknownObstacle {
+        /// The name given.
+        obstacle: String,
+    },
+    /// An influence distance is not finite and > 0 (m).
+    #[error("pair ({link:?}, {obstacle:?}): influence distance {value} m must be finite and > 0")]
+    InvalidInfluenceDistance {
+        /// The link.
+        link: String,
+        /// The obstacle.
+        obstacle: String,
+        /// The value given.
+        value: f64,
+    },
+    /// The visibility margin must be finite, ≥ 0 and leave a non-empty safe region of the image (px).
+    #[error("visibility margin {margin_px} px must be finite, ≥ 0 and < half of the image size ({width} × {height} px)")]
+    InvalidMargin {
+        /// The margin given (px).
+        margin_px: f64,
+        /// Image width (px).
+        width: f64,
+        /// Image height (px).
+        height: f64,
+    },
+    /// A point of the visibility cost is non-finite, or there is none.
+    #[error("visibility cost: the target points must be finite and at least one")]
+    InvalidTargetPoints,
+    /// A target point is at or behind the camera: its projection, hence the visibility cost, is undefined.
+    #[error("target point {point} is behind the camera (depth {depth} m)")]
+    PointBehindCamera {
+        /// The point's index.
+        point: usize,
+        /// Its depth in the camera frame (m).
+        depth: f64,
+    },
+    /// The robot model failed (kinematics or URDF).
+    #[error(transparent)]
+    Robot(#[from] RobotError),
 }
 
 /// A differentiable scalar cost `h(q)` on the joint space, minimised by the projected-gradient term (MATH \[M16\]).
@@ -59,6 +153,44 @@ pub trait Cost<const N: usize> {
         q: &JointVector<N>,
         gradient: &mut JointVector<N>,
     ) -> Result<f64, CostError>;
+
+    /// A short name for logs (`"joint_limits"`, `"obstacles"`, `"visibility"`, ...). Default: `"cost"`.
+    fn name(&self) -> &str {
+        "cost"
+    }
+
+    /// The name of the term that contributes most to `h(q)`, for a cost made of several terms ([`CompositeCost`]);
+    /// the cost's own [`Cost::name`] otherwise (the default). The stack controller records it with every removal.
+    ///
+    /// # Errors
+    /// As [`Cost::value`].
+    fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
+        let _ = q;
+        Ok(self.name())
+    }
+}
+
+/// A reference to a cost is the same cost (so a [`CompositeCost`] can hold borrowed terms).
+impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
+    fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
+        (**self).value(q)
+    }
+
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<N>,
+        gradient: &mut JointVector<N>,
+    ) -> Result<f64, CostError> {
+        (**self).value_and_gradient(q, gradient)
+    }
+
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+
+    fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
+        (**self).dominant_term(q)
+    }
 }
 
 #[cfg(test)]

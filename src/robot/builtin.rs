@@ -106,6 +106,22 @@ pub fn by_name<const N: usize>(name: &str) -> Result<BuiltinRobot<N>, RobotError
     })
 }
 
+/// The URDF text of the built-in robot of this name (for its `<collision>` geometry, see
+/// [`crate::avoidance::LinkColliders`]).
+///
+/// # Errors
+/// [`RobotError::UnknownRobot`] for a name not in [`NAMES`].
+pub fn urdf_by_name(name: &str) -> Result<&'static str, RobotError> {
+    SPECS
+        .iter()
+        .find(|s| s.name == name)
+        .map(|s| s.urdf)
+        .ok_or_else(|| RobotError::UnknownRobot {
+            name: name.to_owned(),
+            known: NAMES,
+        })
+}
+
 /// The Afma6-like gantry with its camera (see the [module docs](self)).
 ///
 /// # Errors

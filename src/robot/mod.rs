@@ -61,6 +61,7 @@ mod kinematics;
 mod urdf;
 
 pub use kinematics::{KinematicState, KinematicsWorkspace};
+pub(crate) use urdf::parse_urdf;
 
 use crate::camera::CameraError;
 use crate::math::JointVector;

@@ -132,7 +132,7 @@ impl<const N: usize> SerialChain<N> {
 ///
 /// # Errors
 /// [`RobotError::Urdf`] with urdf-rs's message.
-pub(super) fn parse_urdf(xml: &str) -> Result<urdf_rs::Robot, RobotError> {
+pub(crate) fn parse_urdf(xml: &str) -> Result<urdf_rs::Robot, RobotError> {
     // urdf-rs and its XML parsers return errors on the inputs we tried (see the fuzz test), but they are third-party
     // code: a panic inside them must not escape a loading function that promises an error instead.
     std::panic::catch_unwind(|| urdf_rs::read_from_string(xml))

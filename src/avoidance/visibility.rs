@@ -1,0 +1,157 @@
+//! The visibility cost: keep every target point inside the image (MATH §4, a cost `h` for \[M18\]).
+//!
+//! The image is the box `[x_min, x_max] × [y_min, y_max]` of normalised coordinates (the pixel rectangle
+//! `[0, width] × [0, height]` through the intrinsics); the cost is active in a band of `margin` pixels along its border:
+//! `x̃_min = (margin − c_x)/f_x`, `x̃_max = (width − margin − c_x)/f_x` (and likewise for y). For the target points
+//! `j`, at normalised coordinates `(x_j, y_j)` seen from the camera at configuration `q`, the cost has the form of the
+//! joint-limit cost \[M20\]–\[M21\] with the image coordinates in place of the joints:
+//!
+//! ```text
+//! h(q)  = ½ Σ_j ( δx_j² / Δx + δy_j² / Δy ) ,    Δx = width / f_x ,  Δy = height / f_y   (the image spans)
+//!         δx_j = x_j − x̃_max  if x_j > x̃_max ,   x_j − x̃_min  if x_j < x̃_min ,   0 otherwise   (δy_j likewise)
+//! ∇h(q) = Σ_j ( (δx_j/Δx) L_x,j + (δy_j/Δy) L_y,j ) · cVe · eJe(q)        (transposed)
+//! ```
+//!
+//! where `(L_x,j ; L_y,j)` is the point's interaction matrix (MATH §7.1, [`crate::feature::point_interaction`],
+//! with the depth `Z_j` of the point) and `cVe · eJe` the camera Jacobian (MATH \[M42\]–\[M43\]): `ẋ_j = L_x,j cVe eJe q̇`
+//! for a static target. `h` is zero, with a zero gradient, while every point is at least `margin` pixels inside the
+//! image; it is dimensionless (normalised image units).
+//!
+//! The cost computes the projection itself from `q` (kinematics on the stack, no allocation), so it can be evaluated
+//! at the controller's predicted configuration `q̂` (D6).
+
+use super::{Cost, CostError};
+use crate::camera::{CameraIntrinsics, EyeInHand, MIN_DEPTH};
+use crate::feature::{point_interaction, InteractionRow};
+use crate::math::{all_finite, JointVector};
+use crate::robot::{KinematicsWorkspace, SerialChain};
+use nalgebra::Point3;
+
+/// The visibility cost of the [module docs](self), a [`Cost`] named `"visibility"`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisibilityCost<const N: usize> {
+    chain: SerialChain<N>,
+    camera: EyeInHand,
+    points_in_base: Vec<Point3<f64>>,
+    margin_px: f64,
+    /// `(x̃_min, x̃_max)` and `(ỹ_min, ỹ_max)`.
+    thresholds: [(f64, f64); 2],
+    /// `(Δx, Δy)`.
+    spans: [f64; 2],
+}
+
+impl<const N: usize> VisibilityCost<N> {
+    /// The cost for the camera `camera` on `chain`, with `intrinsics`, looking at static points `points_in_base`
+    /// (m, robot base frame), active within `margin_px` pixels of the image border.
+    ///
+    /// # Errors
+    /// [`CostError::InvalidMargin`] unless `0 ≤ margin_px < min(width, height)/2`;
+    /// [`CostError::InvalidTargetPoints`] without points or with a non-finite one.
+    pub fn new(
+        chain: SerialChain<N>,
+        camera: EyeInHand,
+        intrinsics: &CameraIntrinsics,
+        points_in_base: &[Point3<f64>],
+        margin_px: f64,
+    ) -> Result<Self, CostError> {
+        let (width, height) = (intrinsics.width(), intrinsics.height());
+        if !(margin_px.is_finite() && margin_px >= 0.0 && 2.0 * margin_px < width.min(height)) {
+            return Err(CostError::InvalidMargin {
+                margin_px,
+                width,
+                height,
+            });
+        }
+        if points_in_base.is_empty() || !points_in_base.iter().all(|p| all_finite(&p.coords)) {
+            return Err(CostError::InvalidTargetPoints);
+        }
+        let (x_min, y_min) = intrinsics.pixel_to_normalized(margin_px, margin_px);
+        let (x_max, y_max) = intrinsics.pixel_to_normalized(width - margin_px, height - margin_px);
+        Ok(Self {
+            chain,
+            camera,
+            points_in_base: points_in_base.to_vec(),
+            margin_px,
+            thresholds: [(x_min, x_max), (y_min, y_max)],
+            spans: [width / intrinsics.fx(), height / intrinsics.fy()],
+        })
+    }
+
+    /// The margin (px) within which the cost is active.
+    pub fn margin_px(&self) -> f64 {
+        self.margin_px
+    }
+
+    /// `h(q)` and, when asked, `∇h(q)`.
+    fn evaluate(
+        &self,
+        q: &JointVector<N>,
+        gradient: Option<&mut JointVector<N>>,
+    ) -> Result<f64, CostError> {
+        if !all_finite(q) {
+            return Err(CostError::NonFiniteConfiguration);
+        }
+        let mut workspace = KinematicsWorkspace::new(); // fixed-size, on the stack
+        let state = self.chain.kinematics(&mut workspace, q)?;
+        let camera_from_base = self
+            .camera
+            .base_from_camera(state.base_from_tip())
+            .inverse();
+        let [(x_low, x_high), (y_low, y_high)] = self.thresholds;
+        let [x_span, y_span] = self.spans;
+        let mut value = 0.0;
+        // Σ_j (δx_j/Δx) L_x,j + (δy_j/Δy) L_y,j: the twist-space gradient, mapped to joints once at the end.
+        let mut twist_gradient = InteractionRow::zeros();
+        for (index, point) in self.points_in_base.iter().enumerate() {
+            let p = camera_from_base * point;
+            if p.z <= MIN_DEPTH {
+                return Err(CostError::PointBehindCamera {
+                    point: index,
+                    depth: p.z,
+                });
+            }
+            let (x, y) = (p.x / p.z, p.y / p.z);
+            let (dx, dy) = (penetration(x, x_low, x_high), penetration(y, y_low, y_high));
+            let (wx, wy) = (dx / x_span, dy / y_span);
+            value += 0.5 * (dx * wx + dy * wy);
+            if wx != 0.0 || wy != 0.0 {
+                let (lx, ly) = point_interaction(x, y, 1.0 / p.z);
+                twist_gradient += lx * wx + ly * wy;
+            }
+        }
+        if let Some(g) = gradient {
+            let camera_jacobian = self.camera.c_v_e() * state.tip_jacobian();
+            *g = (twist_gradient * camera_jacobian).transpose();
+        }
+        Ok(value)
+    }
+}
+
+/// How far `s` is beyond `[low, high]` (signed; 0 inside).
+fn penetration(s: f64, low: f64, high: f64) -> f64 {
+    if s > high {
+        s - high
+    } else if s < low {
+        s - low
+    } else {
+        0.0
+    }
+}
+
+impl<const N: usize> Cost<N> for VisibilityCost<N> {
+    fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
+        self.evaluate(q, None)
+    }
+
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<N>,
+        gradient: &mut JointVector<N>,
+    ) -> Result<f64, CostError> {
+        self.evaluate(q, Some(gradient))
+    }
+
+    fn name(&self) -> &str {
+        "visibility"
+    }
+}

@@ -1,0 +1,107 @@
+//! The task Jacobian of visual tasks on a real robot: `J = L cVe eJe` (MATH \[M42\]) matches central finite differences
+//! of the task error `e(q) = s(q) − s*` through the whole chain (kinematics, camera mount, projection, features).
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use servostack::camera::CameraIntrinsics;
+use servostack::feature::InteractionSource;
+use servostack::math::JointVector;
+use servostack::robot::{builtin, KinematicsWorkspace};
+use servostack::sim::Scene;
+use servostack::target::RectangleTarget;
+use servostack::task::{Task, TaskValue};
+use servostack::visual_task::{classical_task, paper_tasks, VisualContext, VisualTask};
+
+/// The peer scene of PEER_SCENE.md with a tilted desired pose: Afma6, 0.2 × 0.1 m target 0.5 m ahead at q_d.
+fn scene() -> (Scene<6>, Isometry3<f64>, JointVector<6>) {
+    let robot = builtin::afma6().unwrap();
+    let desired_q = JointVector::<6>::new(0.0, 0.0, 0.0, 0.0, 0.3, 0.0);
+    let cd_from_o = Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.5),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.3),
+    );
+    let intrinsics = CameraIntrinsics::new(800.0, 800.0, 320.0, 240.0, 640.0, 480.0).unwrap();
+    let target = RectangleTarget::new(0.2, 0.1).unwrap();
+    let scene = Scene::with_target_seen_from(
+        robot.chain,
+        robot.camera,
+        intrinsics,
+        target,
+        &desired_q,
+        &cd_from_o,
+        0.1,
+    )
+    .unwrap();
+    (scene, cd_from_o, desired_q)
+}
+
+/// Evaluates `task` at `q` into a fresh value.
+fn evaluate(scene: &Scene<6>, task: &VisualTask, q: &JointVector<6>) -> TaskValue<6> {
+    let mut workspace = KinematicsWorkspace::new();
+    let view = scene.observe(&mut workspace, q).unwrap();
+    let observation = view.observation().unwrap();
+    let context = VisualContext {
+        observation: &observation,
+        camera_jacobian: &view.camera_jacobian,
+    };
+    let mut value = TaskValue::for_task::<VisualContext<'_, 6>, _>(task).unwrap();
+    task.evaluate(&context, &mut value).unwrap();
+    value
+}
+
+/// Largest relative difference between `J` and central differences of `e(q)`.
+fn jacobian_error(scene: &Scene<6>, task: &VisualTask, q: &JointVector<6>) -> f64 {
+    let value = evaluate(scene, task, q);
+    let h = 1e-6;
+    let mut worst: f64 = 0.0;
+    for j in 0..6 {
+        let (mut plus, mut minus) = (*q, *q);
+        plus[j] += h;
+        minus[j] -= h;
+        let numeric = (evaluate(scene, task, &plus).error()
+            - evaluate(scene, task, &minus).error())
+            / (2.0 * h);
+        let analytic = value.jacobian().column(j);
+        let scale = 1.0 + analytic.amax();
+        worst = worst.max((numeric - analytic).amax() / scale);
+    }
+    worst
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// The classical task (all six features) and each of the paper's four tasks, at random configurations around the
+    /// desired one (every point stays in front of the camera there).
+    #[test]
+    fn task_jacobians_match_finite_differences(offset in proptest::collection::vec(-1.0..1.0f64, 6)) {
+        let (scene, cd_from_o, desired_q) = scene();
+        let scale = JointVector::<6>::new(0.05, 0.05, 0.05, 0.2, 0.2, 0.2);
+        let q = desired_q + JointVector::<6>::from_column_slice(&offset).component_mul(&scale);
+        let desired_view = scene.view_from(&cd_from_o).unwrap();
+        let desired = desired_view.observation().unwrap();
+        let mut tasks = paper_tasks(&desired, 0.5, 0.5, [0.5; 4], InteractionSource::Exact).unwrap();
+        tasks.push(classical_task(&desired, 0.5, 0.5, 0.5, InteractionSource::Exact).unwrap());
+        for task in &tasks {
+            let error = jacobian_error(&scene, task, &q);
+            prop_assert!(error < 1e-6, "{}: relative error {error:e}", Task::<6, VisualContext<'_, 6>>::name(task));
+        }
+    }
+}
+
+/// At the desired configuration every task error vanishes (the target was placed there), and a `Desired`-source
+/// Jacobian equals the exact one.
+#[test]
+fn errors_vanish_at_the_desired_pose_where_desired_and_exact_jacobians_agree() {
+    let (scene, cd_from_o, desired_q) = scene();
+    let desired_view = scene.view_from(&cd_from_o).unwrap();
+    let desired = desired_view.observation().unwrap();
+    let exact = classical_task(&desired, 0.5, 0.5, 0.5, InteractionSource::Exact).unwrap();
+    let at_desired = classical_task(&desired, 0.5, 0.5, 0.5, InteractionSource::Desired).unwrap();
+    let (a, b) = (
+        evaluate(&scene, &exact, &desired_q),
+        evaluate(&scene, &at_desired, &desired_q),
+    );
+    assert!(a.error().amax() < 1e-12, "e = {}", a.error());
+    assert!((a.jacobian() - b.jacobian()).amax() < 1e-12);
+}
