@@ -541,6 +541,8 @@ pub fn simulate<const N: usize>(
         .then_some(&avoidance as &dyn Cost<N>);
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
+    // The closest link–obstacle pair at the current `q`, computed once per configuration.
+    let mut closest = closest_obstacle(scene, &q)?;
     let mut records = Vec::with_capacity(parameters.max_iterations.min(100_000));
     let mut outcome = Outcome::MaxIterations;
     for iteration in 0..parameters.max_iterations {
@@ -581,7 +583,7 @@ pub fn simulate<const N: usize>(
             predicted_cost: 0.0,
             criteria: Vec::new(),
             image: view.points,
-            obstacle_distance: closest_obstacle(scene, &q)?.map(|(_, _, d)| d),
+            obstacle_distance: closest.as_ref().map(|(_, _, d)| *d),
         };
         if controller.is_complete()
             && record
@@ -611,7 +613,8 @@ pub fn simulate<const N: usize>(
         record.criteria = controller.criteria().to_vec();
         q += step.velocity * parameters.period;
         let hit = scene.limits.violated_joint(&q);
-        let contact = closest_obstacle(scene, &q)?.filter(|(_, _, d)| *d <= 0.0);
+        closest = closest_obstacle(scene, &q)?;
+        let contact = closest.clone().filter(|(_, _, d)| *d <= 0.0);
         let stacked = record.stacked.clone();
         records.push(record);
         if let Some(joint) = hit {
