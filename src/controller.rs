@@ -250,7 +250,9 @@ pub struct ControllerStep<const N: usize> {
 }
 
 /// The stack controller's state: which tasks are stacked, pending and removed, the transition memory, the event log.
-/// Its buffers are allocated once, at construction; an iteration without event allocates nothing.
+/// Its buffers are allocated once, at construction; an iteration without event allocates nothing. An event appends to
+/// the event log (preallocated for four events per task, growing beyond), and a removal copies the criteria into its
+/// report: events are rare and outside the steady state.
 #[derive(Debug, Clone)]
 pub struct StackController<const N: usize> {
     parameters: ControllerParameters,
