@@ -28,7 +28,7 @@
 //! ([`ColumnSvd::decompose_with_scale`]).
 
 use crate::math::{all_finite, JointMatrix, JointVector};
-use nalgebra::{Const, Dim, Matrix, RawStorage, StorageMut, Vector, U1};
+use nalgebra::{Const, Dim, Matrix, RawStorage, SMatrix, StorageMut, Vector, U1};
 
 /// Errors of the linear-algebra helpers.
 #[non_exhaustive]
@@ -166,6 +166,10 @@ pub struct ColumnSvd<const N: usize> {
 /// bounds the loss of orthogonality that rotating the same `V` accumulates (about `ε √(rotations)`).
 const WARM_RESTART: u32 = 64;
 
+/// Matrices with `N < m ≤ TALL_ROWS` rows are rotated directly, zero-padded to `TALL_ROWS` rows (cheaper than a
+/// triangular factor followed by `W = A V` at the sizes of a point task, 8 rows); taller ones on their triangular factor.
+const TALL_ROWS: usize = 8;
+
 /// Maximum number of Jacobi sweeps; quadratic convergence makes 6–10 typical for `N ≤ 12`.
 const MAX_SWEEPS: usize = 60;
 
@@ -274,28 +278,18 @@ impl<const N: usize> ColumnSvd<N> {
             if age.is_none() {
                 self.v = JointMatrix::identity();
             }
-            // A square matrix is rotated on a fixed-size copy, a taller one on its triangular factor R (same σ and
-            // V); W = A V is then formed from A itself.
-            let mut square = if rows == N {
-                let mut square = JointMatrix::<N>::zeros();
-                // Both iterate column-major over N × N entries.
-                square
-                    .iter_mut()
-                    .zip(work.iter())
-                    .for_each(|(s, w)| *s = *w);
-                square
-            } else {
-                triangular_factor(work)
-            };
-            if age.is_some() {
-                square *= self.v;
-            }
-            jacobi(&mut square, N, &mut self.v, scale)?;
+            let warm = age.is_some();
             if rows == N {
-                work.iter_mut()
-                    .zip(square.iter())
-                    .for_each(|(w, s)| *w = *s);
+                self.rotate_padded::<N, R, S>(work, warm, scale)?;
+            } else if rows <= TALL_ROWS {
+                self.rotate_padded::<TALL_ROWS, R, S>(work, warm, scale)?;
             } else {
+                // A taller matrix is rotated on its triangular factor R (same σ and V); W = A V is then formed from A.
+                let mut square = triangular_factor(work);
+                if warm {
+                    square *= self.v;
+                }
+                jacobi(&mut square, N, &mut self.v, scale)?;
                 for mut row in work.row_iter_mut() {
                     let rotated = &row * self.v;
                     row.copy_from(&rotated);
@@ -307,6 +301,34 @@ impl<const N: usize> ColumnSvd<N> {
             self.basis_age = Some(age.map_or(0, |age| age + 1));
         }
         self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
+        Ok(())
+    }
+
+    /// One-sided Jacobi directly on the columns of `A V` (`V` the previous right singular vectors when `warm`, else
+    /// the identity), copied into fixed-size `L × N` storage (`rows ≤ L`, zero rows below: they change no dot product
+    /// and no rotation touches them), so that the column loops unroll. Leaves `W = A V` in `work`: no triangular factor
+    /// and no final product `A V`.
+    fn rotate_padded<const L: usize, R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        warm: bool,
+        scale: f64,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
+    {
+        let mut padded = SMatrix::<f64, L, N>::zeros();
+        for (mut to, from) in padded.column_iter_mut().zip(work.column_iter()) {
+            to.iter_mut().zip(from.iter()).for_each(|(t, f)| *t = *f);
+        }
+        if warm {
+            padded *= self.v;
+        }
+        jacobi(&mut padded, N, &mut self.v, scale)?;
+        for (mut to, from) in work.column_iter_mut().zip(padded.column_iter()) {
+            to.iter_mut().zip(from.iter()).for_each(|(t, f)| *t = *f);
+        }
         Ok(())
     }
 
@@ -461,15 +483,15 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
 ///
 /// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
 /// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
-fn jacobi<const N: usize>(
-    a: &mut JointMatrix<N>,
+fn jacobi<const L: usize, const N: usize>(
+    a: &mut SMatrix<f64, L, N>,
     columns: usize,
     acc: &mut JointMatrix<N>,
     scale: f64,
 ) -> Result<(), LinalgError> {
     let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
-    // An N-term dot product carries a rounding error of about N ε √(αβ): asking for less never converges.
-    let tolerance = (N.max(1) as f64) * f64::EPSILON;
+    // An L-term dot product carries a rounding error of about L ε √(αβ): asking for less never converges.
+    let tolerance = (L.max(1) as f64) * f64::EPSILON;
     let columns = columns.min(N);
     let mut norms = [0.0; N];
     for _ in 0..MAX_SWEEPS {
@@ -552,14 +574,14 @@ const SMALL_ANGLE_ZETA: f64 = 134_217_728.0;
 
 /// Columns `p < q < N` of a fixed-size matrix as two fixed-length mutable arrays (so that the loops over them unroll).
 #[inline(always)]
-fn column_pair<const N: usize>(
-    m: &mut JointMatrix<N>,
+fn column_pair<const L: usize, const N: usize>(
+    m: &mut SMatrix<f64, L, N>,
     p: usize,
     q: usize,
-) -> (&mut [f64; N], &mut [f64; N]) {
-    let (head, tail) = m.as_mut_slice().split_at_mut(q * N);
-    let x = head[p * N..].first_chunk_mut::<N>();
-    let y = tail.first_chunk_mut::<N>();
+) -> (&mut [f64; L], &mut [f64; L]) {
+    let (head, tail) = m.as_mut_slice().split_at_mut(q * L);
+    let x = head[p * L..].first_chunk_mut::<L>();
+    let y = tail.first_chunk_mut::<L>();
     match (x, y) {
         (Some(x), Some(y)) => (x, y),
         // Unreachable for p < q < N (the slices hold N·N entries); kept total rather than panicking.

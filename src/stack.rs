@@ -227,6 +227,7 @@ pub fn solve_stack<'w, const N: usize>(
     solution.velocity.fill(0.0);
     solution.projector.fill_with_identity();
     solution.levels.clear();
+    let mut free = N; // rank of P^A_i
     for ((level, &index), svd) in order.iter().enumerate().zip(svds.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
@@ -247,8 +248,15 @@ pub fn solve_stack<'w, const N: usize>(
         svd.solve(&w, &r, parameters.velocity_inverse, step)
             .map_err(|source| StackError::Linalg { level, source })?;
         solution.velocity += &*step;
-        svd.subtract_row_space_projector(&mut solution.projector);
         let rank = svd.rank();
+        // rank P^A_i = rank P^A_{i−1} − rank J̃_i: once the stack has used every joint direction, P^A_i = 0 exactly
+        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term).
+        free = free.saturating_sub(rank);
+        if free == 0 {
+            solution.projector.fill(0.0);
+        } else {
+            svd.subtract_row_space_projector(&mut solution.projector);
+        }
         solution.levels.push(LevelDiagnostics {
             task: index,
             rows,
