@@ -294,9 +294,9 @@ impl<const N: usize> ColumnSvd<N> {
                     let rotated = &row * self.v;
                     row.copy_from(&rotated);
                 }
-            }
-            for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
-                *sigma = column.norm();
+                for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
+                    *sigma = column.norm();
+                }
             }
             self.basis_age = Some(age.map_or(0, |age| age + 1));
         }
@@ -318,16 +318,25 @@ impl<const N: usize> ColumnSvd<N> {
         R: Dim,
         S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
+        let rows = work.nrows();
         let mut padded = SMatrix::<f64, L, N>::zeros();
-        for (mut to, from) in padded.column_iter_mut().zip(work.column_iter()) {
-            to.iter_mut().zip(from.iter()).for_each(|(t, f)| *t = *f);
+        for (k, to) in padded.as_mut_slice().chunks_exact_mut(L).enumerate() {
+            to[..rows].copy_from_slice(work.column(k).as_slice());
         }
         if warm {
             padded *= self.v;
         }
         jacobi(&mut padded, N, &mut self.v, scale)?;
-        for (mut to, from) in work.column_iter_mut().zip(padded.column_iter()) {
-            to.iter_mut().zip(from.iter()).for_each(|(t, f)| *t = *f);
+        for ((k, from), sigma) in padded
+            .as_slice()
+            .chunks_exact(L)
+            .enumerate()
+            .zip(self.sigma.iter_mut())
+        {
+            work.column_mut(k)
+                .as_mut_slice()
+                .copy_from_slice(&from[..rows]);
+            *sigma = from.iter().map(|x| x * x).sum::<f64>().sqrt();
         }
         Ok(())
     }
@@ -482,7 +491,9 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
 /// relative orthogonality and do not affect any singular value a rank policy keeps; zero columns cost nothing.
 ///
 /// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
-/// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
+/// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation. The sweeps stop when a sweep
+/// rotates nothing, or when its rotations were too small to leave any pair above the tolerance (the converged sweep that
+/// would only confirm it is skipped: a warm start saves it at every step).
 fn jacobi<const L: usize, const N: usize>(
     a: &mut SMatrix<f64, L, N>,
     columns: usize,
@@ -492,16 +503,25 @@ fn jacobi<const L: usize, const N: usize>(
     let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
     // An L-term dot product carries a rounding error of about L ε √(αβ): asking for less never converges.
     let tolerance = (L.max(1) as f64) * f64::EPSILON;
+    let tolerance_sq = tolerance * tolerance;
     let columns = columns.min(N);
     let mut norms = [0.0; N];
+    // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
+    // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
+    let players = columns + columns % 2; // an odd count gets a dummy that sits out
     for _ in 0..MAX_SWEEPS {
-        for (norm, column) in norms.iter_mut().zip(a.column_iter()).take(columns) {
-            *norm = column.norm_squared();
+        for (norm, column) in norms
+            .iter_mut()
+            .zip(a.as_slice().chunks_exact(L))
+            .take(columns)
+        {
+            *norm = column.iter().map(|x| x * x).sum();
         }
         let mut rotated = false;
-        // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
-        // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
-        let players = columns + columns % 2; // an odd count gets a dummy that sits out
+        // The largest relative product ρ² = γ²/(αβ) this sweep rotated away, and the largest reach s² max(α, β)/min(α, β)
+        // of its rotations: rotating (p, q) moves the relative product of (p, r) by at most √reach · ρ_qr.
+        // (A pair left alone has ρ ≤ tolerance.)
+        let (mut worst, mut reach) = (tolerance_sq, 0.0_f64);
         for round in 0..players.saturating_sub(1) {
             for k in 0..players / 2 {
                 let (p, q) = round_robin_pair(players, round, k);
@@ -514,10 +534,20 @@ fn jacobi<const L: usize, const N: usize>(
                 }
                 let (x, y) = column_pair(a, p, q);
                 let gamma = dot(x, y);
-                if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
+                let (product, gamma_sq) = (alpha * beta, gamma * gamma);
+                if gamma_sq <= tolerance_sq * product {
                     continue;
                 }
                 let (c, s, t) = jacobi_rotation(alpha, beta, gamma);
+                worst = worst.max(gamma_sq / product);
+                reach = reach.max(
+                    s * s
+                        * if alpha > beta {
+                            alpha / beta
+                        } else {
+                            beta / alpha
+                        },
+                );
                 rotate(x, y, c, s);
                 let (x, y) = column_pair(acc, p, q);
                 rotate(x, y, c, s);
@@ -526,7 +556,11 @@ fn jacobi<const L: usize, const N: usize>(
                 rotated = true;
             }
         }
-        if !rotated {
+        // Done when this sweep rotated nothing, or when its rotations were so small that the next sweep would find every
+        // pair orthogonal to the tolerance: each pair, once rotated to orthogonality, is moved by at most `2(columns − 2)`
+        // later rotations of the sweep, each by at most √(reach · worst).
+        let hits = 2.0 * columns.saturating_sub(2) as f64;
+        if !rotated || hits * hits * reach * worst <= 0.25 * tolerance_sq {
             return Ok(());
         }
     }
