@@ -491,9 +491,7 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
 /// relative orthogonality and do not affect any singular value a rank policy keeps; zero columns cost nothing.
 ///
 /// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
-/// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation. The sweeps stop when a sweep
-/// rotates nothing, or when its rotations were too small to leave any pair above the tolerance (the converged sweep that
-/// would only confirm it is skipped: a warm start saves it at every step).
+/// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
 fn jacobi<const L: usize, const N: usize>(
     a: &mut SMatrix<f64, L, N>,
     columns: usize,
@@ -503,12 +501,8 @@ fn jacobi<const L: usize, const N: usize>(
     let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
     // An L-term dot product carries a rounding error of about L ε √(αβ): asking for less never converges.
     let tolerance = (L.max(1) as f64) * f64::EPSILON;
-    let tolerance_sq = tolerance * tolerance;
     let columns = columns.min(N);
     let mut norms = [0.0; N];
-    // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
-    // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
-    let players = columns + columns % 2; // an odd count gets a dummy that sits out
     for _ in 0..MAX_SWEEPS {
         for (norm, column) in norms
             .iter_mut()
@@ -518,10 +512,9 @@ fn jacobi<const L: usize, const N: usize>(
             *norm = column.iter().map(|x| x * x).sum();
         }
         let mut rotated = false;
-        // The largest relative product ρ² = γ²/(αβ) this sweep rotated away, and the largest reach s² max(α, β)/min(α, β)
-        // of its rotations: rotating (p, q) moves the relative product of (p, r) by at most √reach · ρ_qr.
-        // (A pair left alone has ρ ≤ tolerance.)
-        let (mut worst, mut reach) = (tolerance_sq, 0.0_f64);
+        // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
+        // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
+        let players = columns + columns % 2; // an odd count gets a dummy that sits out
         for round in 0..players.saturating_sub(1) {
             for k in 0..players / 2 {
                 let (p, q) = round_robin_pair(players, round, k);
@@ -534,20 +527,10 @@ fn jacobi<const L: usize, const N: usize>(
                 }
                 let (x, y) = column_pair(a, p, q);
                 let gamma = dot(x, y);
-                let (product, gamma_sq) = (alpha * beta, gamma * gamma);
-                if gamma_sq <= tolerance_sq * product {
+                if gamma.abs() <= tolerance * (alpha * beta).sqrt() {
                     continue;
                 }
                 let (c, s, t) = jacobi_rotation(alpha, beta, gamma);
-                worst = worst.max(gamma_sq / product);
-                reach = reach.max(
-                    s * s
-                        * if alpha > beta {
-                            alpha / beta
-                        } else {
-                            beta / alpha
-                        },
-                );
                 rotate(x, y, c, s);
                 let (x, y) = column_pair(acc, p, q);
                 rotate(x, y, c, s);
@@ -556,11 +539,7 @@ fn jacobi<const L: usize, const N: usize>(
                 rotated = true;
             }
         }
-        // Done when this sweep rotated nothing, or when its rotations were so small that the next sweep would find every
-        // pair orthogonal to the tolerance: each pair, once rotated to orthogonality, is moved by at most `2(columns − 2)`
-        // later rotations of the sweep, each by at most √(reach · worst).
-        let hits = 2.0 * columns.saturating_sub(2) as f64;
-        if !rotated || hits * hits * reach * worst <= 0.25 * tolerance_sq {
+        if !rotated {
             return Ok(());
         }
     }
