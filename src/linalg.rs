@@ -568,22 +568,31 @@ fn round_robin_pair(players: usize, round: usize, k: usize) -> (usize, usize) {
 }
 
 /// The rotation `(c, s)` and `t = s/c` that makes columns with squared norms `α`, `β` and product `γ ≠ 0` orthogonal
-/// (Rutishauser's formulas). For `|ζ| > 2²⁷` the general formulas round to `t = 1/(2ζ)`, `c = 1`: that case skips
-/// their square roots and gives the same bits.
+/// (Rutishauser's formulas). For `|β − α| > 2²⁸ |γ|` ([`general_rotation`] then rounds to `t = γ/(β − α)`, `c = 1`) that
+/// case skips the square roots and gives the same bits.
 #[inline(always)]
 fn jacobi_rotation(alpha: f64, beta: f64, gamma: f64) -> (f64, f64, f64) {
-    let zeta = (beta - alpha) / (2.0 * gamma);
-    if zeta.abs() > SMALL_ANGLE_ZETA {
-        let t = 0.5 / zeta;
+    let difference = beta - alpha;
+    if difference.abs() > SMALL_ANGLE_RATIO * gamma.abs() {
+        let t = gamma / difference;
         return (1.0, t, t);
     }
-    let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+    general_rotation(difference, gamma)
+}
+
+/// Rutishauser's `t = sign ζ / (|ζ| + √(1 + ζ²))` with `ζ = (β − α)/(2γ)`, `c = 1/√(1 + t²)`, `s = c t`, written without
+/// forming `ζ`: `t = 2γ sign(β − α) / (|β − α| + √((β − α)² + 4γ²))` (one division less on each rotation's dependency
+/// chain). `difference = β − α`.
+#[inline(always)]
+fn general_rotation(difference: f64, gamma: f64) -> (f64, f64, f64) {
+    let root = (difference * difference + 4.0 * gamma * gamma).sqrt();
+    let t = 2.0 * gamma * difference.signum() / (difference.abs() + root);
     let c = 1.0 / (1.0 + t * t).sqrt();
     (c, c * t, t)
 }
 
-/// Beyond this `|ζ|`, `1 + ζ²` rounds to `ζ²` and `1 + t²` to 1 (`2²⁷`, with `ζ² > 2⁵⁴`).
-const SMALL_ANGLE_ZETA: f64 = 134_217_728.0;
+/// Beyond `|β − α| / |γ| = 2²⁸` (`|ζ| > 2²⁷`), `(β − α)² + 4γ²` rounds to `(β − α)²` and `1 + t²` to 1.
+const SMALL_ANGLE_RATIO: f64 = 268_435_456.0;
 
 /// Columns `p < q < N` of a fixed-size matrix as two fixed-length mutable arrays (so that the loops over them unroll).
 #[inline(always)]
@@ -830,24 +839,27 @@ mod tests {
         }
     }
 
-    /// The small-angle shortcut gives the same bits as Rutishauser's general formulas.
+    /// The small-angle shortcut gives the same bits as Rutishauser's general formulas, just beyond its threshold and far
+    /// beyond, for both signs; and the general formulas orthogonalise (a 2 × 2 check against the closed form).
     #[test]
     fn small_angle_rotation_is_bit_identical() {
-        for zeta in [SMALL_ANGLE_ZETA * 1.000_001, -3e9, 1e12, -4.5e15, 7e40] {
-            let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
-            let c = 1.0 / (1.0 + t * t).sqrt();
-            let (gamma, alpha) = (0.5, 1.0);
-            let beta = alpha + 2.0 * gamma * zeta;
-            let zeta_used = (beta - alpha) / (2.0 * gamma);
-            let t_used =
-                zeta_used.signum() / (zeta_used.abs() + (1.0 + zeta_used * zeta_used).sqrt());
-            let c_used = 1.0 / (1.0 + t_used * t_used).sqrt();
-            assert_eq!(
-                jacobi_rotation(alpha, beta, gamma),
-                (c_used, c_used * t_used, t_used)
-            );
-            assert_eq!(c, 1.0);
+        for ratio in [SMALL_ANGLE_RATIO * 1.000_001, -6e9, 2e12, -9e15, 1.4e41] {
+            for gamma in [0.5_f64, -0.5, 3e-7, -1.5e5] {
+                let alpha = 1.0;
+                let difference = ratio * gamma.abs();
+                let beta = alpha + difference;
+                let shortcut = jacobi_rotation(alpha, beta, gamma);
+                assert_eq!(shortcut, general_rotation(beta - alpha, gamma));
+                assert_eq!(shortcut.0, 1.0);
+            }
         }
+        // Columns x = (1, 0), y = (0.3, 0.2): α = 1, β = 0.13, γ = 0.3; the rotated pair is orthogonal.
+        let (c, s, _) = jacobi_rotation(1.0, 0.13, 0.3);
+        let (x0, y0) = ([1.0, 0.0], [0.3, 0.2]);
+        let x1 = [c * x0[0] - s * y0[0], c * x0[1] - s * y0[1]];
+        let y1 = [s * x0[0] + c * y0[0], s * x0[1] + c * y0[1]];
+        assert!((x1[0] * y1[0] + x1[1] * y1[1]).abs() < 1e-16);
+        assert!((c * c + s * s - 1.0).abs() < 1e-15);
     }
 
     /// A long warm-started sequence (a slowly moving 8 × 6 matrix, as in a control loop) keeps V orthogonal to
