@@ -39,7 +39,7 @@
 //! ```
 
 use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
-use crate::math::{all_finite, JointMatrix, JointVector};
+use crate::math::{all_finite_slice, JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
 
@@ -235,12 +235,12 @@ pub fn solve_stack<'w, const N: usize>(
         let mut r = residual.rows_mut(0, rows);
         r.copy_from(task.error());
         r *= -task.gain();
-        r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
-        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I), decomposed in place into W = J̃_i V.
+        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0), decomposed in place into W = J̃_i V.
         let mut w = limited.rows_mut(0, rows);
         if level == 0 {
             w.copy_from(task.jacobian());
         } else {
+            r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
         svd.decompose_warm(&mut w, &parameters.rank_policy, task.jacobian().norm())
@@ -291,10 +291,10 @@ fn checked_task<const N: usize>(
         task: index,
         what,
     };
-    if !all_finite(task.error()) {
+    if !all_finite_slice(task.error().as_slice()) {
         return Err(non_finite("error"));
     }
-    if !all_finite(task.jacobian()) {
+    if !all_finite_slice(task.jacobian().as_slice()) {
         return Err(non_finite("jacobian"));
     }
     Ok(task)
