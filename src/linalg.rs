@@ -503,6 +503,25 @@ fn jacobi<const L: usize, const N: usize>(
     let tolerance = (L.max(1) as f64) * f64::EPSILON;
     let columns = columns.min(N);
     let mut norms = [0.0; N];
+    // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
+    // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep. The schedule
+    // of a sweep is computed once: round r rotates the pairs `schedule[r][..counts[r]]` (at most `N` rounds of at most
+    // `N` pairs, since `players ≤ N + 1`), without the pairs of the dummy player an odd count adds.
+    let players = columns + columns % 2;
+    let mut schedule = [[(0, 0); N]; N];
+    let mut counts = [0; N];
+    for ((round, pairs), count) in schedule.iter_mut().enumerate().zip(counts.iter_mut()) {
+        if round + 1 >= players {
+            break;
+        }
+        for k in 0..players / 2 {
+            let (p, q) = round_robin_pair(players, round, k);
+            if q < columns {
+                pairs[*count] = (p, q);
+                *count += 1;
+            }
+        }
+    }
     for _ in 0..MAX_SWEEPS {
         for (norm, column) in norms
             .iter_mut()
@@ -512,15 +531,8 @@ fn jacobi<const L: usize, const N: usize>(
             *norm = column.iter().map(|x| x * x).sum();
         }
         let mut rotated = false;
-        // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
-        // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
-        let players = columns + columns % 2; // an odd count gets a dummy that sits out
-        for round in 0..players.saturating_sub(1) {
-            for k in 0..players / 2 {
-                let (p, q) = round_robin_pair(players, round, k);
-                if q >= columns {
-                    continue;
-                }
+        for (pairs, &count) in schedule.iter().zip(counts.iter()) {
+            for &(p, q) in &pairs[..count] {
                 let (alpha, beta) = (norms[p], norms[q]);
                 if alpha <= negligible || beta <= negligible {
                     continue;
