@@ -19,8 +19,10 @@
 //! It works on the **smaller side** (DESIGN principle 3): a matrix with fewer rows than columns (`m < N`, every level
 //! of the paper's stack) is decomposed through the `m` columns of `Aᵀ` (`m(m−1)/2` pairs instead of `N(N−1)/2`): a
 //! one-row level needs no rotation, a two-row level one rotation, the closed form of its `2 × 2` Gram matrix `AAᵀ`
-//! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix
-//! is rotated on a fixed-size copy. Columns that are zero (or rounding noise) cost no rotation.
+//! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix,
+//! or a tall one of at most 8 rows (a four-point task), is rotated directly on a fixed-size, zero-padded copy; a taller
+//! one on its `N × N` triangular factor. In a control loop the rotations start from the previous step's right singular
+//! vectors ([`ColumnSvd::decompose_warm`]). Columns that are zero (or rounding noise) cost no rotation.
 //!
 //! **Rank policy** ([`RankPolicy`], D2): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
 //! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
