@@ -19,8 +19,10 @@
 //! It works on the **smaller side** (DESIGN principle 3): a matrix with fewer rows than columns (`m < N`, every level
 //! of the paper's stack) is decomposed through the `m` columns of `Aᵀ` (`m(m−1)/2` pairs instead of `N(N−1)/2`): a
 //! one-row level needs no rotation, a two-row level one rotation, the closed form of its `2 × 2` Gram matrix `AAᵀ`
-//! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix
-//! is rotated on a fixed-size copy. Columns that are zero (or rounding noise) cost no rotation.
+//! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix,
+//! or a tall one of at most 8 rows (a four-point task), is rotated directly on a fixed-size, zero-padded copy; a taller
+//! one on its `N × N` triangular factor. In a control loop the rotations start from the previous step's right singular
+//! vectors ([`ColumnSvd::decompose_warm`]). Columns that are zero (or rounding noise) cost no rotation.
 //!
 //! **Rank policy** ([`RankPolicy`], D2): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
 //! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
@@ -28,7 +30,7 @@
 //! ([`ColumnSvd::decompose_with_scale`]).
 
 use crate::math::{all_finite, JointMatrix, JointVector};
-use nalgebra::{Const, Dim, Matrix, RawStorage, StorageMut, Vector, U1};
+use nalgebra::{Const, Dim, Matrix, RawStorage, SMatrix, StorageMut, Vector, U1};
 
 /// Errors of the linear-algebra helpers.
 #[non_exhaustive]
@@ -166,6 +168,10 @@ pub struct ColumnSvd<const N: usize> {
 /// bounds the loss of orthogonality that rotating the same `V` accumulates (about `ε √(rotations)`).
 const WARM_RESTART: u32 = 64;
 
+/// Matrices with `N < m ≤ TALL_ROWS` rows are rotated directly, zero-padded to `TALL_ROWS` rows (cheaper than a
+/// triangular factor followed by `W = A V` at the sizes of a point task, 8 rows); taller ones on their triangular factor.
+const TALL_ROWS: usize = 8;
+
 /// Maximum number of Jacobi sweeps; quadratic convergence makes 6–10 typical for `N ≤ 12`.
 const MAX_SWEEPS: usize = 60;
 
@@ -274,39 +280,66 @@ impl<const N: usize> ColumnSvd<N> {
             if age.is_none() {
                 self.v = JointMatrix::identity();
             }
-            // A square matrix is rotated on a fixed-size copy, a taller one on its triangular factor R (same σ and
-            // V); W = A V is then formed from A itself.
-            let mut square = if rows == N {
-                let mut square = JointMatrix::<N>::zeros();
-                // Both iterate column-major over N × N entries.
-                square
-                    .iter_mut()
-                    .zip(work.iter())
-                    .for_each(|(s, w)| *s = *w);
-                square
-            } else {
-                triangular_factor(work)
-            };
-            if age.is_some() {
-                square *= self.v;
-            }
-            jacobi(&mut square, N, &mut self.v, scale)?;
+            let warm = age.is_some();
             if rows == N {
-                work.iter_mut()
-                    .zip(square.iter())
-                    .for_each(|(w, s)| *w = *s);
+                self.rotate_padded::<N, R, S>(work, warm, scale)?;
+            } else if rows <= TALL_ROWS {
+                self.rotate_padded::<TALL_ROWS, R, S>(work, warm, scale)?;
             } else {
+                // A taller matrix is rotated on its triangular factor R (same σ and V); W = A V is then formed from A.
+                let mut square = triangular_factor(work);
+                if warm {
+                    square *= self.v;
+                }
+                jacobi(&mut square, N, &mut self.v, scale)?;
                 for mut row in work.row_iter_mut() {
                     let rotated = &row * self.v;
                     row.copy_from(&rotated);
                 }
-            }
-            for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
-                *sigma = column.norm();
+                for (sigma, column) in self.sigma.iter_mut().zip(work.column_iter()) {
+                    *sigma = column.norm();
+                }
             }
             self.basis_age = Some(age.map_or(0, |age| age + 1));
         }
         self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
+        Ok(())
+    }
+
+    /// One-sided Jacobi directly on the columns of `A V` (`V` the previous right singular vectors when `warm`, else
+    /// the identity), copied into fixed-size `L × N` storage (`rows ≤ L`, zero rows below: they change no dot product
+    /// and no rotation touches them), so that the column loops unroll. Leaves `W = A V` in `work`: no triangular factor
+    /// and no final product `A V`.
+    fn rotate_padded<const L: usize, R, S>(
+        &mut self,
+        work: &mut Matrix<f64, R, Const<N>, S>,
+        warm: bool,
+        scale: f64,
+    ) -> Result<(), LinalgError>
+    where
+        R: Dim,
+        S: StorageMut<f64, R, Const<N>, RStride = U1>,
+    {
+        let rows = work.nrows();
+        let mut padded = SMatrix::<f64, L, N>::zeros();
+        for (k, to) in padded.as_mut_slice().chunks_exact_mut(L).enumerate() {
+            to[..rows].copy_from_slice(work.column(k).as_slice());
+        }
+        if warm {
+            padded *= self.v;
+        }
+        jacobi(&mut padded, N, &mut self.v, scale)?;
+        for ((k, from), sigma) in padded
+            .as_slice()
+            .chunks_exact(L)
+            .enumerate()
+            .zip(self.sigma.iter_mut())
+        {
+            work.column_mut(k)
+                .as_mut_slice()
+                .copy_from_slice(&from[..rows]);
+            *sigma = from.iter().map(|x| x * x).sum::<f64>().sqrt();
+        }
         Ok(())
     }
 
@@ -461,31 +494,47 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
 ///
 /// The squared column norms are computed at the start of each sweep and updated in closed form after each rotation
 /// (`α' = α − tγ`, `β' = β + tγ`), so a pair costs one dot product and the rotation.
-fn jacobi<const N: usize>(
-    a: &mut JointMatrix<N>,
+fn jacobi<const L: usize, const N: usize>(
+    a: &mut SMatrix<f64, L, N>,
     columns: usize,
     acc: &mut JointMatrix<N>,
     scale: f64,
 ) -> Result<(), LinalgError> {
     let negligible = (16.0 * f64::EPSILON).powi(2) * scale;
-    // An N-term dot product carries a rounding error of about N ε √(αβ): asking for less never converges.
-    let tolerance = (N.max(1) as f64) * f64::EPSILON;
+    // An L-term dot product carries a rounding error of about L ε √(αβ): asking for less never converges.
+    let tolerance = (L.max(1) as f64) * f64::EPSILON;
     let columns = columns.min(N);
     let mut norms = [0.0; N];
+    // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
+    // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep. The schedule
+    // of a sweep is computed once: round r rotates the pairs `schedule[r][..counts[r]]` (at most `N` rounds of at most
+    // `N` pairs, since `players ≤ N + 1`), without the pairs of the dummy player an odd count adds.
+    let players = columns + columns % 2;
+    let mut schedule = [[(0, 0); N]; N];
+    let mut counts = [0; N];
+    for ((round, pairs), count) in schedule.iter_mut().enumerate().zip(counts.iter_mut()) {
+        if round + 1 >= players {
+            break;
+        }
+        for k in 0..players / 2 {
+            let (p, q) = round_robin_pair(players, round, k);
+            if q < columns {
+                pairs[*count] = (p, q);
+                *count += 1;
+            }
+        }
+    }
     for _ in 0..MAX_SWEEPS {
-        for (norm, column) in norms.iter_mut().zip(a.column_iter()).take(columns) {
-            *norm = column.norm_squared();
+        for (norm, column) in norms
+            .iter_mut()
+            .zip(a.as_slice().chunks_exact(L))
+            .take(columns)
+        {
+            *norm = column.iter().map(|x| x * x).sum();
         }
         let mut rotated = false;
-        // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
-        // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep.
-        let players = columns + columns % 2; // an odd count gets a dummy that sits out
-        for round in 0..players.saturating_sub(1) {
-            for k in 0..players / 2 {
-                let (p, q) = round_robin_pair(players, round, k);
-                if q >= columns {
-                    continue;
-                }
+        for (pairs, &count) in schedule.iter().zip(counts.iter()) {
+            for &(p, q) in &pairs[..count] {
                 let (alpha, beta) = (norms[p], norms[q]);
                 if alpha <= negligible || beta <= negligible {
                     continue;
@@ -533,33 +582,42 @@ fn round_robin_pair(players: usize, round: usize, k: usize) -> (usize, usize) {
 }
 
 /// The rotation `(c, s)` and `t = s/c` that makes columns with squared norms `α`, `β` and product `γ ≠ 0` orthogonal
-/// (Rutishauser's formulas). For `|ζ| > 2²⁷` the general formulas round to `t = 1/(2ζ)`, `c = 1`: that case skips
-/// their square roots and gives the same bits.
+/// (Rutishauser's formulas). For `|β − α| > 2²⁸ |γ|` ([`general_rotation`] then rounds to `t = γ/(β − α)`, `c = 1`) that
+/// case skips the square roots and gives the same bits.
 #[inline(always)]
 fn jacobi_rotation(alpha: f64, beta: f64, gamma: f64) -> (f64, f64, f64) {
-    let zeta = (beta - alpha) / (2.0 * gamma);
-    if zeta.abs() > SMALL_ANGLE_ZETA {
-        let t = 0.5 / zeta;
+    let difference = beta - alpha;
+    if difference.abs() > SMALL_ANGLE_RATIO * gamma.abs() {
+        let t = gamma / difference;
         return (1.0, t, t);
     }
-    let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+    general_rotation(difference, gamma)
+}
+
+/// Rutishauser's `t = sign ζ / (|ζ| + √(1 + ζ²))` with `ζ = (β − α)/(2γ)`, `c = 1/√(1 + t²)`, `s = c t`, written without
+/// forming `ζ`: `t = 2γ sign(β − α) / (|β − α| + √((β − α)² + 4γ²))` (one division less on each rotation's dependency
+/// chain). `difference = β − α`.
+#[inline(always)]
+fn general_rotation(difference: f64, gamma: f64) -> (f64, f64, f64) {
+    let root = (difference * difference + 4.0 * gamma * gamma).sqrt();
+    let t = 2.0 * gamma * difference.signum() / (difference.abs() + root);
     let c = 1.0 / (1.0 + t * t).sqrt();
     (c, c * t, t)
 }
 
-/// Beyond this `|ζ|`, `1 + ζ²` rounds to `ζ²` and `1 + t²` to 1 (`2²⁷`, with `ζ² > 2⁵⁴`).
-const SMALL_ANGLE_ZETA: f64 = 134_217_728.0;
+/// Beyond `|β − α| / |γ| = 2²⁸` (`|ζ| > 2²⁷`), `(β − α)² + 4γ²` rounds to `(β − α)²` and `1 + t²` to 1.
+const SMALL_ANGLE_RATIO: f64 = 268_435_456.0;
 
 /// Columns `p < q < N` of a fixed-size matrix as two fixed-length mutable arrays (so that the loops over them unroll).
 #[inline(always)]
-fn column_pair<const N: usize>(
-    m: &mut JointMatrix<N>,
+fn column_pair<const L: usize, const N: usize>(
+    m: &mut SMatrix<f64, L, N>,
     p: usize,
     q: usize,
-) -> (&mut [f64; N], &mut [f64; N]) {
-    let (head, tail) = m.as_mut_slice().split_at_mut(q * N);
-    let x = head[p * N..].first_chunk_mut::<N>();
-    let y = tail.first_chunk_mut::<N>();
+) -> (&mut [f64; L], &mut [f64; L]) {
+    let (head, tail) = m.as_mut_slice().split_at_mut(q * L);
+    let x = head[p * L..].first_chunk_mut::<L>();
+    let y = tail.first_chunk_mut::<L>();
     match (x, y) {
         (Some(x), Some(y)) => (x, y),
         // Unreachable for p < q < N (the slices hold N·N entries); kept total rather than panicking.
@@ -795,24 +853,27 @@ mod tests {
         }
     }
 
-    /// The small-angle shortcut gives the same bits as Rutishauser's general formulas.
+    /// The small-angle shortcut gives the same bits as Rutishauser's general formulas, just beyond its threshold and far
+    /// beyond, for both signs; and the general formulas orthogonalise (a 2 × 2 check against the closed form).
     #[test]
     fn small_angle_rotation_is_bit_identical() {
-        for zeta in [SMALL_ANGLE_ZETA * 1.000_001, -3e9, 1e12, -4.5e15, 7e40] {
-            let t = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
-            let c = 1.0 / (1.0 + t * t).sqrt();
-            let (gamma, alpha) = (0.5, 1.0);
-            let beta = alpha + 2.0 * gamma * zeta;
-            let zeta_used = (beta - alpha) / (2.0 * gamma);
-            let t_used =
-                zeta_used.signum() / (zeta_used.abs() + (1.0 + zeta_used * zeta_used).sqrt());
-            let c_used = 1.0 / (1.0 + t_used * t_used).sqrt();
-            assert_eq!(
-                jacobi_rotation(alpha, beta, gamma),
-                (c_used, c_used * t_used, t_used)
-            );
-            assert_eq!(c, 1.0);
+        for ratio in [SMALL_ANGLE_RATIO * 1.000_001, -6e9, 2e12, -9e15, 1.4e41] {
+            for gamma in [0.5_f64, -0.5, 3e-7, -1.5e5] {
+                let alpha = 1.0;
+                let difference = ratio * gamma.abs();
+                let beta = alpha + difference;
+                let shortcut = jacobi_rotation(alpha, beta, gamma);
+                assert_eq!(shortcut, general_rotation(beta - alpha, gamma));
+                assert_eq!(shortcut.0, 1.0);
+            }
         }
+        // Columns x = (1, 0), y = (0.3, 0.2): α = 1, β = 0.13, γ = 0.3; the rotated pair is orthogonal.
+        let (c, s, _) = jacobi_rotation(1.0, 0.13, 0.3);
+        let (x0, y0) = ([1.0, 0.0], [0.3, 0.2]);
+        let x1 = [c * x0[0] - s * y0[0], c * x0[1] - s * y0[1]];
+        let y1 = [s * x0[0] + c * y0[0], s * x0[1] + c * y0[1]];
+        assert!((x1[0] * y1[0] + x1[1] * y1[1]).abs() < 1e-16);
+        assert!((c * c + s * s - 1.0).abs() < 1e-15);
     }
 
     /// A long warm-started sequence (a slowly moving 8 × 6 matrix, as in a control loop) keeps V orthogonal to

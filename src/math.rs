@@ -94,6 +94,11 @@ where
     m.iter().all(|v| v.is_finite())
 }
 
+/// `true` when every value of the slice is finite: as [`all_finite`] on contiguous storage, without a branch per entry.
+pub fn all_finite_slice(values: &[f64]) -> bool {
+    values.iter().fold(true, |finite, v| finite & v.is_finite())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -39,7 +39,7 @@
 //! ```
 
 use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
-use crate::math::{all_finite, JointMatrix, JointVector};
+use crate::math::{all_finite_slice, JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
 
@@ -227,6 +227,7 @@ pub fn solve_stack<'w, const N: usize>(
     solution.velocity.fill(0.0);
     solution.projector.fill_with_identity();
     solution.levels.clear();
+    let mut free = N; // rank of P^A_i
     for ((level, &index), svd) in order.iter().enumerate().zip(svds.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
@@ -234,12 +235,12 @@ pub fn solve_stack<'w, const N: usize>(
         let mut r = residual.rows_mut(0, rows);
         r.copy_from(task.error());
         r *= -task.gain();
-        r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
-        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I), decomposed in place into W = J̃_i V.
+        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0), decomposed in place into W = J̃_i V.
         let mut w = limited.rows_mut(0, rows);
         if level == 0 {
             w.copy_from(task.jacobian());
         } else {
+            r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
         svd.decompose_warm(&mut w, &parameters.rank_policy, task.jacobian().norm())
@@ -247,8 +248,15 @@ pub fn solve_stack<'w, const N: usize>(
         svd.solve(&w, &r, parameters.velocity_inverse, step)
             .map_err(|source| StackError::Linalg { level, source })?;
         solution.velocity += &*step;
-        svd.subtract_row_space_projector(&mut solution.projector);
         let rank = svd.rank();
+        // rank P^A_i = rank P^A_{i−1} − rank J̃_i: once the stack has used every joint direction, P^A_i = 0 exactly
+        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term).
+        free = free.saturating_sub(rank);
+        if free == 0 {
+            solution.projector.fill(0.0);
+        } else {
+            svd.subtract_row_space_projector(&mut solution.projector);
+        }
         solution.levels.push(LevelDiagnostics {
             task: index,
             rows,
@@ -283,10 +291,10 @@ fn checked_task<const N: usize>(
         task: index,
         what,
     };
-    if !all_finite(task.error()) {
+    if !all_finite_slice(task.error().as_slice()) {
         return Err(non_finite("error"));
     }
-    if !all_finite(task.jacobian()) {
+    if !all_finite_slice(task.jacobian().as_slice()) {
         return Err(non_finite("jacobian"));
     }
     Ok(task)
