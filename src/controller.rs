@@ -43,7 +43,7 @@ use crate::law::{
 };
 use crate::linalg::{ColumnSvd, VelocityInverse};
 use crate::math::JointVector;
-use crate::stack::{solve_stack, StackWorkspace};
+use crate::stack::{solve_stack, StackError, StackWorkspace};
 use crate::task::{TaskJacobian, TaskValue};
 
 /// Errors of the stack controller.
@@ -99,10 +99,12 @@ pub struct ControllerParameters {
     /// After a change, wait `t − τ ≥ settle_transitions / μ` seconds before the next push (D5; 5 by default, when the
     /// transition term has decayed to `e^{−5} ≈ 0.7 %`).
     pub settle_transitions: f64,
-    /// `T_pred` (s): the prediction horizon `q̂ = q + T_pred q̇` of D6 / \[M22\].
+    /// `T_pred` (s): the prediction horizon `q̂ = q + T_pred u` of D6 / \[M22\], with `u` the current stack's law
+    /// (not the blended `q̇`: see the module docs).
     pub prediction_horizon: f64,
     /// `h_max`: a task is removed when `h(q̂) > h_max` (D6), in the cost's unit. `None`: the caller's default (for the
-    /// joint-limit cost, [`crate::avoidance::JointLimits::default_removal_threshold`]).
+    /// joint-limit cost, [`crate::avoidance::JointLimits::default_removal_threshold`]): the cost's
+    /// [`Cost::default_removal_threshold`] (D6), and no removal for a cost without one.
     pub removal_threshold: Option<f64>,
     /// Whether tasks may be removed at all (`false`: push-only, as the paper's runs 2 and 3).
     pub allow_removal: bool,
@@ -300,12 +302,6 @@ impl<const N: usize> StackController<N> {
             svds: vec![ColumnSvd::default(); tasks.len()],
             events: Vec::with_capacity(4 * tasks.len() + 8),
         })
-        .map(|mut controller| {
-            if controller.task_count > 0 {
-                controller.push_next(0, 0.0);
-            }
-            controller
-        })
     }
 
     /// The parameters.
@@ -394,6 +390,11 @@ impl<const N: usize> StackController<N> {
                 found: tasks.len(),
             });
         }
+        let first_step = self.events.is_empty() && self.next_push == 0;
+        if first_step && self.task_count > 0 {
+            // The first task is stacked from the first iteration, at its time.
+            self.push_next(iteration, time);
+        }
         let change = if self.change_pending {
             StackChange::Changed
         } else {
@@ -416,7 +417,7 @@ impl<const N: usize> StackController<N> {
         self.change_pending = false;
         let gradient = *output.gradient();
         let law_velocity = *output.law();
-        let event = self.decide(
+        let decided = self.decide(
             law,
             tasks,
             cost,
@@ -426,7 +427,16 @@ impl<const N: usize> StackController<N> {
             iteration,
             time,
             &mut result,
-        )?;
+        );
+        let event = match decided {
+            Ok(event) => event,
+            Err(error) => {
+                // Nothing is sent: the next step must blend from the velocity actually sent before.
+                self.law_workspace.reset(&velocity_sent_before);
+                self.change_pending = change == StackChange::Changed;
+                return Err(error);
+            }
+        };
         if let Some(kind) = event {
             // MATH §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
             // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1).
@@ -449,6 +459,14 @@ impl<const N: usize> StackController<N> {
             result.event = Some(kind);
         }
         Ok(result)
+    }
+
+    /// `h_max`: the parameter, else the cost's D6 default, else no removal.
+    fn removal_threshold(&self, cost: &dyn Cost<N>) -> f64 {
+        self.parameters
+            .removal_threshold
+            .or_else(|| cost.default_removal_threshold())
+            .unwrap_or(f64::INFINITY)
     }
 
     fn summarize(&self, output: &ControlOutput<N>) -> ControllerStep<N> {
@@ -482,9 +500,9 @@ impl<const N: usize> StackController<N> {
             let mut predicted_gradient = JointVector::zeros();
             result.predicted_cost = cost.value_and_gradient(&predicted, &mut predicted_gradient)?;
             if gradient.norm() > 0.0 {
-                self.compute_criteria(law, tasks, gradient);
+                self.compute_criteria(law, tasks, gradient)?;
             }
-            let threshold = self.parameters.removal_threshold.unwrap_or(f64::INFINITY);
+            let threshold = self.removal_threshold(cost);
             let may_remove =
                 self.parameters.allow_removal && !self.stacked.is_empty() && gradient.norm() > 0.0;
             let worsening = result.predicted_cost > result.cost;
@@ -507,7 +525,7 @@ impl<const N: usize> StackController<N> {
         if !self.settled(law, time, result.stack_velocity_norm) {
             return Ok(None);
         }
-        if let Some(task) = self.reinsertable(law, tasks, cost, q)? {
+        if let Some(task) = self.reinsertable(law, tasks, cost, q, gradient)? {
             self.removed.retain(|&t| t != task);
             self.insert_by_priority(task);
             self.record(iteration, time, EventKind::Reinsert, task, None);
@@ -535,6 +553,7 @@ impl<const N: usize> StackController<N> {
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
         q: &JointVector<N>,
+        gradient: &JointVector<N>,
     ) -> Result<Option<usize>, ControllerError> {
         let Some(&task) = self.removed.first() else {
             return Ok(None);
@@ -553,22 +572,23 @@ impl<const N: usize> StackController<N> {
             &self.trial_order,
         )
         .map_err(LawError::from)?;
-        let mut gradient = JointVector::zeros();
-        cost.value_and_gradient(q, &mut gradient)?;
         let mut trial_law = *solution.velocity();
-        trial_law.gemv(-law.avoidance_gain(), solution.projector(), &gradient, 1.0);
+        trial_law.gemv(-law.avoidance_gain(), solution.projector(), gradient, 1.0);
         let predicted = q + trial_law * self.parameters.prediction_horizon;
-        let threshold = self.parameters.removal_threshold.unwrap_or(f64::INFINITY);
+        let threshold = self.removal_threshold(cost);
         Ok((cost.value(&predicted)? <= threshold).then_some(task))
     }
 
     /// Computes [`TaskCriteria`] for every stacked task (MATH §6.3) into `self.criteria`.
+    ///
+    /// # Errors
+    /// A failed decomposition of a task Jacobian (the removal must not be chosen from an incomplete set).
     fn compute_criteria(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         gradient: &JointVector<N>,
-    ) {
+    ) -> Result<(), ControllerError> {
         let policy = law.stack_parameters().rank_policy;
         let gradient_norm = gradient.norm();
         for &index in &self.stacked {
@@ -578,21 +598,22 @@ impl<const N: usize> StackController<N> {
             let rows = task.rows();
             let mut work = self.jacobian_work.rows_mut(0, rows);
             work.copy_from(task.jacobian());
-            if svd.decompose_warm(&mut work, &policy, 0.0).is_err() {
-                continue;
-            }
+            let linalg = |source| {
+                ControllerError::Law(LawError::Stack(StackError::Linalg {
+                    level: index,
+                    source,
+                }))
+            };
+            svd.decompose_warm(&mut work, &policy, 0.0)
+                .map_err(linalg)?;
             let mut direction = JointVector::zeros(); // J_i⁺ e_i
-            if svd
-                .solve(
-                    &work,
-                    task.error(),
-                    VelocityInverse::Truncated,
-                    &mut direction,
-                )
-                .is_err()
-            {
-                continue;
-            }
+            svd.solve(
+                &work,
+                task.error(),
+                VelocityInverse::Truncated,
+                &mut direction,
+            )
+            .map_err(linalg)?;
             let c1 = -direction.dot(gradient);
             let direction_norm = direction.norm();
             let c1_normalized = if direction_norm > DIRECTION_FLOOR {
@@ -613,6 +634,7 @@ impl<const N: usize> StackController<N> {
                 combined: (c1_normalized + c2_prime) / gradient_norm,
             });
         }
+        Ok(())
     }
 
     /// The stacked task with the best score; the lowest-priority one on ties (or when no criteria exist).

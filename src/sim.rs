@@ -527,14 +527,7 @@ pub fn simulate<const N: usize>(
         .iter()
         .map(TaskValue::for_task::<VisualContext<'_, N>, _>)
         .collect::<Result<_, _>>()?;
-    let controller_parameters = ControllerParameters {
-        removal_threshold: drive
-            .controller
-            .removal_threshold
-            .or(Some(scene.limits.default_removal_threshold())),
-        ..drive.controller
-    };
-    let mut controller = StackController::new(controller_parameters, &values)?;
+    let mut controller = StackController::new(drive.controller, &values)?;
     let avoidance = scene.avoidance_cost();
     let cost: Option<&dyn Cost<N>> = drive
         .avoid_joint_limits
@@ -609,6 +602,9 @@ pub fn simulate<const N: usize>(
             },
         };
         record.velocity = step.velocity;
+        // The stack that produced the velocity sent (a change made at this iteration included).
+        record.stacked.clear();
+        record.stacked.extend_from_slice(controller.stacked());
         record.predicted_cost = step.predicted_cost;
         record.criteria = controller.criteria().to_vec();
         q += step.velocity * parameters.period;

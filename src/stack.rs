@@ -191,7 +191,7 @@ impl<const N: usize> StackWorkspace<N> {
         }
     }
 
-    /// The result of the last successful solve.
+    /// The result of the last solve (unspecified after a failed one).
     pub fn solution(&self) -> &StackSolution<N> {
         &self.solution
     }
@@ -202,7 +202,7 @@ impl<const N: usize> StackWorkspace<N> {
 ///
 /// # Errors
 /// An unknown task index, a task or stack larger than the workspace, non-finite task data, invalid parameters, or a
-/// failed decomposition. No partial result is exposed on error.
+/// failed decomposition. After an error, the workspace's solution is unspecified (not returned to the caller).
 pub fn solve_stack<'w, const N: usize>(
     parameters: &StackParameters,
     workspace: &'w mut StackWorkspace<N>,

@@ -190,7 +190,8 @@ impl<const N: usize> TaskValue<N> {
         (&mut self.error, &mut self.jacobian, &mut self.interaction)
     }
 
-    /// Checks that error and Jacobian are finite (the stack solve calls this on every level).
+    /// Checks that error and Jacobian are finite (for task implementations; the stack solve checks every level
+    /// itself and reports the level and task index).
     ///
     /// # Errors
     /// [`TaskError::NonFinite`].

@@ -1,7 +1,7 @@
 //! The stack controller on synthetic joint-space tasks (MATH §6, D3–D7): the task that drives a joint into its limit is
 //! the one removed, the limit is not hit, the task comes back, and the velocity is continuous at every event.
 
-use servostack::avoidance::{Cost, JointLimits};
+use servostack::avoidance::{Cost, CostError, JointLimits};
 use servostack::controller::{
     ControllerError, ControllerParameters, EventKind, RemovalCriterion, StackController,
 };
@@ -223,4 +223,127 @@ fn invalid_parameters_and_task_count() {
             found: 0
         }
     );
+}
+
+/// With default parameters (`removal_threshold: None`) the threshold comes from the cost (MATH D6: the joint-limit
+/// half-band cost): the blocking task is still removed and the limit not hit.
+#[test]
+fn default_parameters_take_the_threshold_from_the_cost() {
+    let tasks = tasks();
+    let mut values: Vec<TaskValue<3>> = tasks
+        .iter()
+        .map(|t| TaskValue::for_task(t).unwrap())
+        .collect();
+    let limits =
+        JointLimits::new(JointVector::repeat(-1.0), JointVector::repeat(1.0), 0.1).unwrap();
+    let law = ControlLaw::with_default_transition(&values, 1.0).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    let mut q = JointVector::<3>::new(0.2, -0.2, 0.1);
+    for iteration in 0..3000 {
+        for (task, value) in tasks.iter().zip(values.iter_mut()) {
+            task.evaluate(&q, value).unwrap();
+        }
+        let step = controller
+            .step(
+                &law,
+                &values,
+                Some(&limits),
+                &q,
+                iteration,
+                iteration as f64 * 0.01,
+            )
+            .unwrap();
+        q += step.velocity * 0.01;
+        assert_eq!(limits.violated_joint(&q), None);
+    }
+    let removal = controller
+        .events()
+        .iter()
+        .find(|e| e.kind == EventKind::Remove)
+        .expect("a removal");
+    assert_eq!(removal.task, 1);
+    assert_eq!(
+        removal.removal.as_ref().unwrap().threshold,
+        limits.default_removal_threshold()
+    );
+}
+
+/// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
+/// it is the only change of that iteration.
+#[test]
+fn first_push_is_logged_at_the_first_step() {
+    let tasks = tasks();
+    let mut values: Vec<TaskValue<3>> = tasks
+        .iter()
+        .map(|t| TaskValue::for_task(t).unwrap())
+        .collect();
+    let law = ControlLaw::new(10.0, 0.0).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    assert!(controller.stacked().is_empty());
+    let q = JointVector::<3>::zeros(); // "hold" is already achieved here: a naive rule would push again at once
+    for (task, value) in tasks.iter().zip(values.iter_mut()) {
+        task.evaluate(&q, value).unwrap();
+    }
+    controller.step(&law, &values, None, &q, 7, 100.0).unwrap();
+    assert_eq!(controller.events().len(), 1);
+    let first = &controller.events()[0];
+    assert_eq!(
+        (first.iteration, first.time, first.kind, first.task),
+        (7, 100.0, EventKind::Push, 0)
+    );
+    assert_eq!(controller.stacked(), &[0]);
+}
+
+/// A cost that is defined at one configuration only: the law (evaluated there) succeeds, the prediction (elsewhere)
+/// fails.
+struct DefinedOnlyAt(JointVector<3>);
+
+impl Cost<3> for DefinedOnlyAt {
+    fn value(&self, q: &JointVector<3>) -> Result<f64, CostError> {
+        if *q == self.0 {
+            Ok(0.0)
+        } else {
+            Err(CostError::NonFiniteConfiguration)
+        }
+    }
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<3>,
+        gradient: &mut JointVector<3>,
+    ) -> Result<f64, CostError> {
+        gradient.fill(0.0);
+        self.value(q)
+    }
+}
+
+/// A step that fails after the law ran (here, in the prediction) sends nothing: the next change still blends from
+/// the velocity actually sent before, which the law's workspace keeps.
+#[test]
+fn a_failed_step_leaves_the_last_sent_velocity_in_place() {
+    let tasks = tasks();
+    let mut values: Vec<TaskValue<3>> = tasks
+        .iter()
+        .map(|t| TaskValue::for_task(t).unwrap())
+        .collect();
+    let law = ControlLaw::new(10.0, 0.0).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    let q = JointVector::<3>::new(0.2, -0.2, 0.4); // "hold" (joint 2 to 0) is stacked first and moves joint 2
+    for (task, value) in tasks.iter().zip(values.iter_mut()) {
+        task.evaluate(&q, value).unwrap();
+    }
+    controller.step(&law, &values, None, &q, 0, 0.0).unwrap();
+    let sent = controller
+        .step(&law, &values, None, &q, 1, 0.01)
+        .unwrap()
+        .velocity;
+    assert!(sent.norm() > 0.0);
+    let failing = DefinedOnlyAt(q);
+    let error = controller
+        .step(&law, &values, Some(&failing), &q, 2, 0.02)
+        .unwrap_err();
+    assert_eq!(
+        error,
+        ControllerError::Cost(CostError::NonFiniteConfiguration)
+    );
+    assert_eq!(*controller.law_workspace().last_output().velocity(), sent);
 }

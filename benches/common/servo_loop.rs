@@ -151,7 +151,7 @@ impl ServoLoop {
         let task = match variant {
             Variant::A | Variant::C => VisualTask::new(
                 "points",
-                Box::new(AllPoints::new(4)),
+                Box::new(AllPoints::new(4).expect("4 points")),
                 &desired,
                 GAIN,
                 InteractionSource::Exact,

@@ -118,6 +118,14 @@ impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
         }
         Ok(best.map_or("composite", |(_, name)| name))
     }
+
+    /// The smallest default threshold of the terms that have one.
+    fn default_removal_threshold(&self) -> Option<f64> {
+        self.terms
+            .iter()
+            .filter_map(|term| term.default_removal_threshold())
+            .reduce(f64::min)
+    }
 }
 
 #[cfg(test)]

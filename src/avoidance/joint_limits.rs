@@ -89,15 +89,15 @@ impl<const N: usize> JointLimits<N> {
 
     /// The value of `h` when one joint, `joint`, has gone half-way through its activation band and every other joint is
     /// in the acceptable box: `½ (ρΔq/2)² / Δq = ρ² Δq / 8`. The stack controller's default `h_max` is the smallest of
-    /// these over the joints (MATH D6).
-    pub fn half_band_cost(&self, joint: usize) -> f64 {
-        self.rho * self.rho * self.range(joint) / 8.0
+    /// these over the joints (MATH D6). `None` for a joint index `≥ N`.
+    pub fn half_band_cost(&self, joint: usize) -> Option<f64> {
+        (joint < N).then(|| self.rho * self.rho * self.range(joint) / 8.0)
     }
 
     /// The default removal threshold `h_max` of MATH D6: the smallest [`Self::half_band_cost`] over the joints.
     pub fn default_removal_threshold(&self) -> f64 {
         (0..N)
-            .map(|joint| self.half_band_cost(joint))
+            .filter_map(|joint| self.half_band_cost(joint))
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -124,6 +124,11 @@ impl<const N: usize> JointLimits<N> {
 impl<const N: usize> Cost<N> for JointLimits<N> {
     fn name(&self) -> &str {
         "joint_limits"
+    }
+
+    /// D6: the cost of one joint half-way through its activation band ([`Self::default_removal_threshold`]).
+    fn default_removal_threshold(&self) -> Option<f64> {
+        Some(JointLimits::default_removal_threshold(self))
     }
 
     /// \[M20\].
@@ -192,7 +197,8 @@ mod tests {
         let mut q = (limits.lower() + limits.upper()) * 0.5;
         q[0] = high[0] + 0.05;
         assert!((limits.value(&q).unwrap() - 0.5 * 0.05 * 0.05 / 1.3502).abs() < 1e-15);
-        assert!((limits.half_band_cost(0) - 0.01 * 1.3502 / 8.0).abs() < 1e-15);
+        assert!((limits.half_band_cost(0).unwrap() - 0.01 * 1.3502 / 8.0).abs() < 1e-15);
+        assert_eq!(limits.half_band_cost(6), None);
         assert_eq!(limits.violated_joint(&q), None);
         q[3] = 2.75;
         assert_eq!(limits.violated_joint(&q), Some(3));

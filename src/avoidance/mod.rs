@@ -168,6 +168,13 @@ pub trait Cost<const N: usize> {
         let _ = q;
         Ok(self.name())
     }
+
+    /// The removal threshold `h_max` the stack controller uses with this cost when none is given (MATH D6), in the
+    /// cost's unit; `None` (the default) when the cost has no natural one, and then no task is removed unless a
+    /// threshold is set explicitly.
+    fn default_removal_threshold(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// A reference to a cost is the same cost (so a [`CompositeCost`] can hold borrowed terms).
@@ -190,6 +197,10 @@ impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
 
     fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
         (**self).dominant_term(q)
+    }
+
+    fn default_removal_threshold(&self) -> Option<f64> {
+        (**self).default_removal_threshold()
     }
 }
 

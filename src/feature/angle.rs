@@ -87,7 +87,7 @@ impl Feature for DiagonalAngle {
         true
     }
     fn min_points(&self) -> usize {
-        self.from.max(self.to) + 1
+        self.from.max(self.to).saturating_add(1)
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
         let [alpha, ..] = self.segment(obs)?;

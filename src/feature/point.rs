@@ -28,7 +28,7 @@ impl Feature for Point {
         false
     }
     fn min_points(&self) -> usize {
-        self.index + 1
+        self.index.saturating_add(1)
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
         let (p, _, _) = rows(self, obs, self.index)?;
@@ -55,9 +55,22 @@ pub struct AllPoints {
 }
 
 impl AllPoints {
-    /// The feature for exactly `count` points.
-    pub fn new(count: usize) -> Self {
-        Self { count }
+    /// The largest point count accepted (far beyond any image-point task; it bounds the task storage).
+    pub const MAX_POINTS: usize = 4096;
+
+    /// The feature for exactly `count` points (`1 ≤ count ≤ MAX_POINTS`).
+    ///
+    /// # Errors
+    /// [`FeatureError::InvalidParameter`] for a count out of that range.
+    pub fn new(count: usize) -> Result<Self, FeatureError> {
+        if (1..=Self::MAX_POINTS).contains(&count) {
+            Ok(Self { count })
+        } else {
+            Err(FeatureError::InvalidParameter {
+                name: "point count",
+                value: count as f64,
+            })
+        }
     }
 
     fn check_count(&self, obs: &Observation<'_>) -> Result<(), FeatureError> {
@@ -145,7 +158,7 @@ mod tests {
         #[test]
         fn all_points_match_camera_motion(pose in tilted_pose_strategy(), plane in any::<bool>()) {
             let scene = Scene::new(pose, rectangle(0.2, 0.1));
-            scene.check_exact(&AllPoints::new(4), plane);
+            scene.check_exact(&AllPoints::new(4).unwrap(), plane);
         }
     }
 
@@ -167,6 +180,18 @@ mod tests {
 
     #[test]
     fn bad_point_counts_are_errors() {
+        for count in [0, AllPoints::MAX_POINTS + 1, usize::MAX] {
+            assert!(matches!(
+                AllPoints::new(count),
+                Err(FeatureError::InvalidParameter {
+                    name: "point count",
+                    ..
+                })
+            ));
+        }
+        // A huge point index is a too-few-points error, not an overflow.
+        let far = Point::new(usize::MAX);
+        assert_eq!(far.min_points(), usize::MAX);
         let pts = rectangle_points_fronto(0.2, 0.1, 0.5);
         let obs = Observation::new(&pts[..3], None).unwrap();
         let mut s = [0.0; 2];
@@ -180,7 +205,7 @@ mod tests {
         );
         let mut s8 = [0.0; 8];
         assert_eq!(
-            AllPoints::new(4).value(&obs, &mut s8),
+            AllPoints::new(4).unwrap().value(&obs, &mut s8),
             Err(FeatureError::TooFewPoints {
                 feature: "all points",
                 needed: 4,
@@ -190,7 +215,7 @@ mod tests {
         let obs4 = Observation::new(&pts, None).unwrap();
         let mut s6 = [0.0; 6];
         assert_eq!(
-            AllPoints::new(3).value(&obs4, &mut s6),
+            AllPoints::new(3).unwrap().value(&obs4, &mut s6),
             Err(FeatureError::PointCountMismatch {
                 feature: "all points",
                 expected: 3,
@@ -198,7 +223,7 @@ mod tests {
             })
         );
         assert_eq!(
-            AllPoints::new(4).value(&obs4, &mut s6),
+            AllPoints::new(4).unwrap().value(&obs4, &mut s6),
             Err(FeatureError::WrongDimension {
                 feature: "all points",
                 expected: 8,
