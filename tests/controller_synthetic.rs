@@ -189,28 +189,41 @@ fn criteria_match_their_definitions() {
 #[test]
 fn invalid_parameters_and_task_count() {
     let values = [TaskValue::<3>::new("t", 1, 1.0).unwrap()];
-    for parameters in [
-        ControllerParameters {
-            settle_velocity: 0.0,
-            ..Default::default()
-        },
-        ControllerParameters {
-            prediction_horizon: -0.1,
-            ..Default::default()
-        },
-        ControllerParameters {
-            removal_threshold: Some(f64::NAN),
-            ..Default::default()
-        },
-        ControllerParameters {
-            settle_transitions: f64::INFINITY,
-            ..Default::default()
-        },
-    ] {
-        assert!(matches!(
-            StackController::new(parameters, &values),
-            Err(ControllerError::InvalidParameter { .. })
-        ));
+    let cases = [
+        (
+            ControllerParameters {
+                settle_velocity: 0.0,
+                ..Default::default()
+            },
+            "settle_velocity",
+        ),
+        (
+            ControllerParameters {
+                prediction_horizon: -0.1,
+                ..Default::default()
+            },
+            "prediction_horizon",
+        ),
+        (
+            ControllerParameters {
+                removal_threshold: Some(f64::NAN),
+                ..Default::default()
+            },
+            "removal_threshold",
+        ),
+        (
+            ControllerParameters {
+                settle_transitions: f64::INFINITY,
+                ..Default::default()
+            },
+            "settle_transitions",
+        ),
+    ];
+    for (parameters, expected) in cases {
+        match StackController::new(parameters, &values) {
+            Err(ControllerError::InvalidParameter { name, .. }) => assert_eq!(name, expected),
+            other => panic!("{expected}: expected InvalidParameter, got {other:?}"),
+        }
     }
     let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
     let law = ControlLaw::new(1.0, 0.0).unwrap();

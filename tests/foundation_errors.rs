@@ -200,13 +200,16 @@ fn time_must_be_finite_and_not_go_back() {
         StackChange::Changed,
     )
     .unwrap();
-    assert!(matches!(
+    assert_eq!(
         step(&law, &mut ws, &tasks, &[0], &q, 1.0),
-        Err(LawError::InvalidTime { .. })
-    ));
+        Err(LawError::InvalidTime {
+            time: 1.0,
+            switch_time: 2.0
+        })
+    );
     assert!(matches!(
         step(&law, &mut ws, &tasks, &[0], &q, f64::NAN),
-        Err(LawError::InvalidTime { .. })
+        Err(LawError::InvalidTime { time, switch_time: 2.0 }) if time.is_nan()
     ));
     // A failed step leaves the law usable: the next valid step is finite.
     assert!(step(&law, &mut ws, &tasks, &[0], &q, 2.5)
