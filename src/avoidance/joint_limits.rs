@@ -12,7 +12,7 @@
 //! everywhere. Units: `δ_i` and `Δq_i` are in the joint's unit (m or rad), so `h` is in m or rad per joint term and `∇h`
 //! is dimensionless; the avoidance gain `κ` carries the unit 1/s.
 
-use super::{Cost, CostError};
+use super::{dead_band, Cost, CostError};
 use crate::math::{all_finite, JointVector};
 
 /// Joint limits and the cost \[M20\] that keeps a configuration away from them.
@@ -77,14 +77,7 @@ impl<const N: usize> JointLimits<N> {
     /// `δ_i` of \[M20\]: how far joint `i` has gone into its activation band (signed, 0 inside the acceptable box).
     fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
         let band = self.rho * self.range(joint);
-        let (low, high) = (self.lower[joint] + band, self.upper[joint] - band);
-        if q[joint] > high {
-            q[joint] - high
-        } else if q[joint] < low {
-            q[joint] - low
-        } else {
-            0.0
-        }
+        dead_band(q[joint], self.lower[joint] + band, self.upper[joint] - band)
     }
 
     /// The value of `h` when one joint, `joint`, has gone half-way through its activation band and every other joint is

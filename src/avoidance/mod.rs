@@ -204,6 +204,18 @@ impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
     }
 }
 
+/// How far `s` lies beyond the dead band `[low, high]`: `s − high` above, `s − low` below, 0 inside — the `δ` of the
+/// joint-limit cost \[M20\], also used by the visibility cost on image coordinates.
+pub(crate) fn dead_band(s: f64, low: f64, high: f64) -> f64 {
+    if s > high {
+        s - high
+    } else if s < low {
+        s - low
+    } else {
+        0.0
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod test_support {
     use super::Cost;

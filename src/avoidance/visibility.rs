@@ -20,8 +20,8 @@
 //! The cost computes the projection itself from `q` (kinematics on the stack, no allocation), so it can be evaluated
 //! at the controller's predicted configuration `q̂` (D6).
 
-use super::{Cost, CostError};
-use crate::camera::{CameraIntrinsics, EyeInHand, MIN_DEPTH};
+use super::{dead_band, Cost, CostError};
+use crate::camera::{project_point, CameraIntrinsics, EyeInHand};
 use crate::feature::{point_interaction, InteractionRow};
 use crate::math::{all_finite, JointVector};
 use crate::robot::{KinematicsWorkspace, SerialChain};
@@ -104,37 +104,25 @@ impl<const N: usize> VisibilityCost<N> {
         let mut twist_gradient = InteractionRow::zeros();
         for (index, point) in self.points_in_base.iter().enumerate() {
             let p = camera_from_base * point;
-            if p.z <= MIN_DEPTH {
-                return Err(CostError::PointBehindCamera {
-                    point: index,
-                    depth: p.z,
-                });
-            }
-            let (x, y) = (p.x / p.z, p.y / p.z);
-            let (dx, dy) = (penetration(x, x_low, x_high), penetration(y, y_low, y_high));
+            // `q` is finite (checked above), so the only projection failure is a point at or behind the camera.
+            let image = project_point(&p).map_err(|_| CostError::PointBehindCamera {
+                point: index,
+                depth: p.z,
+            })?;
+            let (x, y, depth) = (image.x, image.y, image.depth);
+            let (dx, dy) = (dead_band(x, x_low, x_high), dead_band(y, y_low, y_high));
             let (wx, wy) = (dx / x_span, dy / y_span);
             value += 0.5 * (dx * wx + dy * wy);
             if wx != 0.0 || wy != 0.0 {
-                let (lx, ly) = point_interaction(x, y, 1.0 / p.z);
+                let (lx, ly) = point_interaction(x, y, 1.0 / depth);
                 twist_gradient += lx * wx + ly * wy;
             }
         }
         if let Some(g) = gradient {
-            let camera_jacobian = self.camera.c_v_e() * state.tip_jacobian();
+            let camera_jacobian = self.camera.camera_jacobian(state.tip_jacobian());
             *g = (twist_gradient * camera_jacobian).transpose();
         }
         Ok(value)
-    }
-}
-
-/// How far `s` is beyond `[low, high]` (signed; 0 inside).
-fn penetration(s: f64, low: f64, high: f64) -> f64 {
-    if s > high {
-        s - high
-    } else if s < low {
-        s - low
-    } else {
-        0.0
     }
 }
 
