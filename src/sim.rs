@@ -367,9 +367,10 @@ pub struct Record<const N: usize> {
     pub task_errors: Vec<f64>,
     /// The tasks stacked at this iteration.
     pub stacked: Vec<usize>,
-    /// `h(q)` of the joint-limit cost.
+    /// `h(q)` of the joint-limit cost alone (whatever the run avoids; for the joint-limit figures and margins).
     pub cost: f64,
-    /// The controller's predicted `h(q̂)`.
+    /// The controller's predicted `h(q̂)` of the cost it drives with (joint limits, plus obstacles and visibility when
+    /// the scene has them; 0 for runs without avoidance): not comparable with [`Record::cost`] when obstacles are on.
     pub predicted_cost: f64,
     /// The criteria of the stacked tasks (empty when `∇h = 0` or without avoidance).
     pub criteria: Vec<TaskCriteria>,

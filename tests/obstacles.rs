@@ -252,6 +252,14 @@ fn composite_of_limits_obstacles_and_visibility() {
         ["joint_limits", "obstacles", "visibility"]
     );
     let q = fixture::reference_q();
+    assert_eq!(
+        sum.term_values(&q, &mut [0.0; 2]),
+        Err(CostError::LengthMismatch {
+            what: "term values",
+            expected: 3,
+            found: 2
+        })
+    );
     let mut values = [0.0; 3];
     sum.term_values(&q, &mut values).unwrap();
     assert_relative_eq!(

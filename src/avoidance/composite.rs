@@ -67,11 +67,18 @@ impl<'a, const N: usize> CompositeCost<'a, N> {
         self.terms.iter().map(|t| t.name())
     }
 
-    /// Each term's value `h_k(q)`, written into `values` (one per term, in order; extra entries are left alone).
+    /// Each term's value `h_k(q)`, written into `values` (one per term, in order).
     ///
     /// # Errors
-    /// A term's error.
+    /// [`CostError::LengthMismatch`] unless `values` has one entry per term; a term's error.
     pub fn term_values(&self, q: &JointVector<N>, values: &mut [f64]) -> Result<(), CostError> {
+        if values.len() != self.terms.len() {
+            return Err(CostError::LengthMismatch {
+                what: "term values",
+                expected: self.terms.len(),
+                found: values.len(),
+            });
+        }
         for (term, value) in self.terms.iter().zip(values.iter_mut()) {
             *value = term.value(q)?;
         }

@@ -121,6 +121,16 @@ pub enum CostError {
     /// A point of the visibility cost is non-finite, or there is none.
     #[error("visibility cost: the target points must be finite and at least one")]
     InvalidTargetPoints,
+    /// A caller's buffer has the wrong length.
+    #[error("{what}: {found} entries, expected {expected}")]
+    LengthMismatch {
+        /// Which buffer.
+        what: &'static str,
+        /// The expected length.
+        expected: usize,
+        /// The length given.
+        found: usize,
+    },
     /// A target point is at or behind the camera: its projection, hence the visibility cost, is undefined.
     #[error("target point {point} is behind the camera (depth {depth} m)")]
     PointBehindCamera {
