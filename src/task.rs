@@ -70,13 +70,22 @@ pub enum TaskError {
         /// `"error"`, `"jacobian"` or the input that was not finite.
         what: &'static str,
     },
-    /// A task-specific evaluation failure (for example, a visual feature that is undefined in the current image).
+    /// A task-specific evaluation failure, for task implementations outside this crate.
     #[error("task `{name}`: {reason}")]
     Evaluation {
         /// The task's name.
         name: String,
         /// What went wrong.
         reason: String,
+    },
+    /// A visual feature of the task is undefined in the current (or desired) image; the feature's error, with its
+    /// values, is the source.
+    #[error("task `{name}`: {source}")]
+    Feature {
+        /// The task's name.
+        name: String,
+        /// The feature's error.
+        source: crate::feature::FeatureError,
     },
 }
 

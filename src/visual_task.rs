@@ -63,9 +63,9 @@ impl std::fmt::Debug for VisualTask {
 }
 
 fn feature_error(name: &str, source: FeatureError) -> TaskError {
-    TaskError::Evaluation {
+    TaskError::Feature {
         name: name.into(),
-        reason: source.to_string(),
+        source,
     }
 }
 
@@ -74,7 +74,7 @@ impl VisualTask {
     /// source `source`. For [`InteractionSource::Desired`], `L` is computed here, once, on `desired`.
     ///
     /// # Errors
-    /// [`TaskError::InvalidGain`]; [`TaskError::Evaluation`] when the feature is undefined on the desired observation.
+    /// [`TaskError::InvalidGain`]; [`TaskError::Feature`] when the feature is undefined on the desired observation.
     pub fn new(
         name: &str,
         feature: BoxedFeature,

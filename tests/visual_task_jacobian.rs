@@ -105,3 +105,26 @@ fn errors_vanish_at_the_desired_pose_where_desired_and_exact_jacobians_agree() {
     assert!(a.error().amax() < 1e-12, "e = {}", a.error());
     assert!((a.jacobian() - b.jacobian()).amax() < 1e-12);
 }
+
+/// A square target seen head-on makes the third-order features undefined (MATH D9): building the paper's tasks fails
+/// with the feature's own error, values included.
+#[test]
+fn square_seen_head_on_is_a_feature_error() {
+    let square = [(-0.1, -0.1), (0.1, -0.1), (0.1, 0.1), (-0.1, 0.1)]
+        .map(|(x, y)| servostack::camera::ImagePoint::new(x, y, 0.5));
+    let desired = servostack::feature::Observation::new(&square, None).unwrap();
+    let error = paper_tasks(&desired, 0.5, 0.5, [0.5; 4], InteractionSource::Exact).unwrap_err();
+    match error {
+        servostack::task::TaskError::Feature { name, source } => {
+            assert_eq!(name, "third_order");
+            assert!(
+                matches!(
+                    source,
+                    servostack::feature::FeatureError::IsotropicMoments { .. }
+                ),
+                "{source:?}"
+            );
+        }
+        other => panic!("expected a feature error, got {other:?}"),
+    }
+}
