@@ -33,7 +33,7 @@
 
 use crate::avoidance::{Cost, CostError};
 use crate::continuity::Transition;
-use crate::math::{all_finite, JointVector};
+use crate::math::{all_finite, first_non_finite, JointVector};
 use crate::stack::{solve_stack, StackError, StackParameters, StackSolution, StackWorkspace};
 use crate::task::TaskValue;
 
@@ -64,8 +64,13 @@ pub enum LawError {
         switch_time: f64,
     },
     /// The joint configuration holds a NaN or an infinity.
-    #[error("joint configuration holds a non-finite value")]
-    NonFiniteConfiguration,
+    #[error("joint {joint} = {value} is not finite")]
+    NonFiniteConfiguration {
+        /// The first offending joint (0-based).
+        joint: usize,
+        /// Its value.
+        value: f64,
+    },
     /// The stack solve failed.
     #[error(transparent)]
     Stack(#[from] StackError),
@@ -266,8 +271,8 @@ pub fn control_step<'w, const N: usize>(
     time: f64,
     change: StackChange,
 ) -> Result<&'w ControlOutput<N>, LawError> {
-    if !all_finite(q) {
-        return Err(LawError::NonFiniteConfiguration);
+    if let Some((joint, value)) = first_non_finite(q) {
+        return Err(LawError::NonFiniteConfiguration { joint, value });
     }
     let switch_time = workspace.transition.switch_time();
     if !time.is_finite() || time < switch_time {

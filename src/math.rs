@@ -84,6 +84,11 @@ pub fn wrap_angle(angle: f64) -> f64 {
     }
 }
 
+/// The first joint whose value is not finite, with that value, or `None` (for errors that name the offending entry).
+pub fn first_non_finite<const N: usize>(q: &JointVector<N>) -> Option<(usize, f64)> {
+    q.iter().copied().enumerate().find(|(_, v)| !v.is_finite())
+}
+
 /// `true` when every entry of a matrix or vector is finite (no NaN, no ±∞).
 pub fn all_finite<R, C, S>(m: &nalgebra::Matrix<f64, R, C, S>) -> bool
 where

@@ -308,7 +308,7 @@ fn first_push_is_logged_at_the_first_step() {
 }
 
 /// A cost that is defined at one configuration only: the law (evaluated there) succeeds, the prediction (elsewhere)
-/// fails.
+/// fails (reported as an infinite value of joint 0, for the test).
 struct DefinedOnlyAt(JointVector<3>);
 
 impl Cost<3> for DefinedOnlyAt {
@@ -316,7 +316,10 @@ impl Cost<3> for DefinedOnlyAt {
         if *q == self.0 {
             Ok(0.0)
         } else {
-            Err(CostError::NonFiniteConfiguration)
+            Err(CostError::NonFiniteConfiguration {
+                joint: 0,
+                value: f64::INFINITY,
+            })
         }
     }
     fn value_and_gradient(
@@ -356,7 +359,10 @@ fn a_failed_step_leaves_the_last_sent_velocity_in_place() {
         .unwrap_err();
     assert_eq!(
         error,
-        ControllerError::Cost(CostError::NonFiniteConfiguration)
+        ControllerError::Cost(CostError::NonFiniteConfiguration {
+            joint: 0,
+            value: f64::INFINITY
+        })
     );
     assert_eq!(*controller.law_workspace().last_output().velocity(), sent);
 }

@@ -372,10 +372,10 @@ fn bad_input_is_a_clear_error() {
         Err(CostError::UnknownLink { .. })
     ));
     let cost = build(pair("cart", "ball", 0.1)).unwrap();
-    assert_eq!(
+    assert!(matches!(
         cost.value(&Vector1::new(f64::NAN)),
-        Err(CostError::NonFiniteConfiguration)
-    );
+        Err(CostError::NonFiniteConfiguration { joint: 0, value }) if value.is_nan()
+    ));
     let intrinsics = CameraIntrinsics::new(100.0, 100.0, 50.0, 50.0, 100.0, 100.0).unwrap();
     let camera = EyeInHand::new(Isometry3::identity()).unwrap();
     let point = [Point3::new(0.0, 0.0, 1.0)];

@@ -13,7 +13,7 @@
 //! is dimensionless; the avoidance gain `κ` carries the unit 1/s.
 
 use super::{dead_band, Cost, CostError};
-use crate::math::{all_finite, JointVector};
+use crate::math::{first_non_finite, JointVector};
 
 /// Joint limits and the cost \[M20\] that keeps a configuration away from them.
 #[derive(Debug, Clone, PartialEq)]
@@ -126,8 +126,8 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
 
     /// \[M20\].
     fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
-        if !all_finite(q) {
-            return Err(CostError::NonFiniteConfiguration);
+        if let Some((joint, value)) = first_non_finite(q) {
+            return Err(CostError::NonFiniteConfiguration { joint, value });
         }
         Ok((0..N)
             .map(|i| 0.5 * self.penetration(q, i).powi(2) / self.range(i))
@@ -140,8 +140,8 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
         q: &JointVector<N>,
         gradient: &mut JointVector<N>,
     ) -> Result<f64, CostError> {
-        if !all_finite(q) {
-            return Err(CostError::NonFiniteConfiguration);
+        if let Some((joint, value)) = first_non_finite(q) {
+            return Err(CostError::NonFiniteConfiguration { joint, value });
         }
         let mut value = 0.0;
         for i in 0..N {
@@ -230,9 +230,9 @@ mod tests {
         );
         assert!(JointLimits::new(lo, JointVector::<2>::new(f64::INFINITY, 1.0), 0.1).is_err());
         let limits = JointLimits::new(lo, hi, 0.1).unwrap();
-        assert_eq!(
-            limits.value(&JointVector::<2>::new(f64::NAN, 0.0)),
-            Err(CostError::NonFiniteConfiguration)
-        );
+        assert!(matches!(
+            limits.value(&JointVector::<2>::new(0.0, f64::NAN)),
+            Err(CostError::NonFiniteConfiguration { joint: 1, value }) if value.is_nan()
+        ));
     }
 }

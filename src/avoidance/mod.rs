@@ -52,8 +52,13 @@ pub enum CostError {
         upper: f64,
     },
     /// The configuration holds a NaN or an infinity.
-    #[error("joint configuration holds a non-finite value")]
-    NonFiniteConfiguration,
+    #[error("joint {joint} = {value} is not finite")]
+    NonFiniteConfiguration {
+        /// The first offending joint (0-based).
+        joint: usize,
+        /// Its value.
+        value: f64,
+    },
     /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>`).
     #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule)")]
     UnsupportedGeometry {

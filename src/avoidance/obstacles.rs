@@ -23,7 +23,7 @@
 
 use super::collision::{proximity, signed_distance, Collider, Geometry};
 use super::{Cost, CostError};
-use crate::math::{all_finite, JointVector};
+use crate::math::{first_non_finite, JointVector};
 use crate::robot::{parse_urdf, ChainLink, KinematicState, KinematicsWorkspace, SerialChain};
 use nalgebra::{Isometry3, SMatrix};
 
@@ -358,8 +358,8 @@ impl<const N: usize> ObstacleCost<N> {
         workspace: &'w mut KinematicsWorkspace<N>,
         q: &JointVector<N>,
     ) -> Result<&'w KinematicState<N>, CostError> {
-        if !all_finite(q) {
-            return Err(CostError::NonFiniteConfiguration);
+        if let Some((joint, value)) = first_non_finite(q) {
+            return Err(CostError::NonFiniteConfiguration { joint, value });
         }
         Ok(self.chain.kinematics(workspace, q)?)
     }

@@ -23,7 +23,7 @@
 use super::{dead_band, Cost, CostError};
 use crate::camera::{project_point, CameraIntrinsics, EyeInHand};
 use crate::feature::{point_interaction, InteractionRow};
-use crate::math::{all_finite, JointVector};
+use crate::math::{all_finite, first_non_finite, JointVector};
 use crate::robot::{KinematicsWorkspace, SerialChain};
 use nalgebra::Point3;
 
@@ -88,8 +88,8 @@ impl<const N: usize> VisibilityCost<N> {
         q: &JointVector<N>,
         gradient: Option<&mut JointVector<N>>,
     ) -> Result<f64, CostError> {
-        if !all_finite(q) {
-            return Err(CostError::NonFiniteConfiguration);
+        if let Some((joint, value)) = first_non_finite(q) {
+            return Err(CostError::NonFiniteConfiguration { joint, value });
         }
         let mut workspace = KinematicsWorkspace::new(); // fixed-size, on the stack
         let state = self.chain.kinematics(&mut workspace, q)?;
