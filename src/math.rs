@@ -101,7 +101,18 @@ where
 
 /// `true` when every value of the slice is finite: as [`all_finite`] on contiguous storage, without a branch per entry.
 pub fn all_finite_slice(values: &[f64]) -> bool {
-    values.iter().fold(true, |finite, v| finite & v.is_finite())
+    // `v · 0` is 0 for a finite `v` and NaN otherwise; four independent sums of them vectorise.
+    let mut sums = [0.0; 4];
+    let mut chunks = values.chunks_exact(4);
+    for chunk in &mut chunks {
+        for (sum, v) in sums.iter_mut().zip(chunk) {
+            *sum += v * 0.0;
+        }
+    }
+    for (sum, v) in sums.iter_mut().zip(chunks.remainder()) {
+        *sum += v * 0.0;
+    }
+    sums.iter().all(|&sum| sum == 0.0)
 }
 
 #[cfg(test)]
@@ -109,6 +120,23 @@ mod tests {
     use super::*;
     use approx::assert_relative_eq;
     use nalgebra::{Point3, UnitQuaternion};
+
+    #[test]
+    fn all_finite_slice_finds_every_non_finite_entry() {
+        for len in 0..10 {
+            let finite: Vec<f64> = (0..len)
+                .map(|k| [f64::MAX, -0.0, -1.5e300, 3.0][k % 4])
+                .collect();
+            assert!(all_finite_slice(&finite), "{finite:?}");
+            for at in 0..len {
+                for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                    let mut values = finite.clone();
+                    values[at] = bad;
+                    assert!(!all_finite_slice(&values), "{values:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn skew_is_the_cross_product() {

@@ -491,7 +491,10 @@ pub trait Feature {
         check_points(self, obs)?;
         check_dim(self, l.nrows())?;
         self.write_interaction(obs, source, l.rows_mut(0, self.dim()))?;
-        if crate::math::all_finite(&l) {
+        // Column by column on contiguous slices: nalgebra's entry iterator over a strided view is slow.
+        if l.column_iter()
+            .all(|column| crate::math::all_finite_slice(column.as_slice()))
+        {
             Ok(())
         } else {
             Err(FeatureError::NonFiniteResult {
