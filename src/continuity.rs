@@ -62,12 +62,14 @@ impl<const N: usize> Transition<N> {
         (-mu * (time - self.switch_time)).exp()
     }
 
-    /// The blended velocity `u(t) + e^{−μ(t−τ)} (q̇(τ⁻) − u(τ))` of D1, written into `out`.
-    pub fn blend(&self, mu: f64, time: f64, law: &JointVector<N>, out: &mut JointVector<N>) {
+    /// The blended velocity `u(t) + e^{−μ(t−τ)} (q̇(τ⁻) − u(τ))` of D1, written into `out`; returns the decay factor
+    /// it used ([`Self::decay`]).
+    pub fn blend(&self, mu: f64, time: f64, law: &JointVector<N>, out: &mut JointVector<N>) -> f64 {
         let decay = self.decay(mu, time);
         out.copy_from(law);
         out.axpy(decay, &self.velocity_before, 1.0);
         out.axpy(-decay, &self.law_at_switch, 1.0);
+        decay
     }
 }
 
@@ -86,7 +88,8 @@ mod tests {
         transition.blend(4.0, 2.0, &law, &mut out);
         assert_relative_eq!(out, before, epsilon = 1e-15);
         // With a constant law, the gap to the law shrinks as e^{−μ(t−τ)}.
-        transition.blend(4.0, 2.5, &law, &mut out);
+        let decay = transition.blend(4.0, 2.5, &law, &mut out);
+        assert_relative_eq!(decay, (-2.0f64).exp(), epsilon = 1e-15);
         assert_relative_eq!(out - law, (before - law) * (-2.0f64).exp(), epsilon = 1e-15);
     }
 }

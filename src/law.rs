@@ -284,15 +284,17 @@ pub fn control_step<'w, const N: usize>(
         Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
         None => 0.0,
     };
-    // u = q̇_n − κ P^A_n ∇h
+    // u = q̇_n − κ P^A_n ∇h (∇h = 0 without a cost)
     let mut law_velocity = *solution.velocity();
-    law_velocity.gemv(-law.avoidance_gain, solution.projector(), &gradient, 1.0);
+    if cost.is_some() {
+        law_velocity.gemv(-law.avoidance_gain, solution.projector(), &gradient, 1.0);
+    }
     let mut transition = workspace.transition;
     if change == StackChange::Changed {
         transition.switch(time, &workspace.output.velocity, &law_velocity);
     }
     let mut velocity = JointVector::zeros();
-    transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
+    let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
     if !all_finite(&velocity) || !cost_value.is_finite() {
         return Err(LawError::NonFiniteVelocity);
     }
@@ -302,6 +304,6 @@ pub fn control_step<'w, const N: usize>(
     output.law = law_velocity;
     output.gradient = gradient;
     output.cost = cost_value;
-    output.decay = workspace.transition.decay(law.transition_gain, time);
+    output.decay = decay;
     Ok(output)
 }
