@@ -89,6 +89,23 @@ pub fn first_non_finite<const N: usize>(q: &JointVector<N>) -> Option<(usize, f6
     q.iter().copied().enumerate().find(|(_, v)| !v.is_finite())
 }
 
+/// The first entry of a matrix or vector (in column-major order) that is NaN or infinite, as `(row, column, value)`,
+/// or `None`: the slow, precise companion of [`all_finite`] and [`all_finite_slice`] for error messages.
+pub fn first_non_finite_entry<R, C, S>(
+    m: &nalgebra::Matrix<f64, R, C, S>,
+) -> Option<(usize, usize, f64)>
+where
+    R: nalgebra::Dim,
+    C: nalgebra::Dim,
+    S: nalgebra::RawStorage<f64, R, C>,
+{
+    let rows = m.nrows().max(1);
+    m.iter()
+        .enumerate()
+        .find(|(_, v)| !v.is_finite())
+        .map(|(k, &v)| (k % rows, k / rows, v))
+}
+
 /// `true` when every entry of a matrix or vector is finite (no NaN, no ±∞).
 pub fn all_finite<R, C, S>(m: &nalgebra::Matrix<f64, R, C, S>) -> bool
 where
@@ -130,6 +147,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The first non-finite entry is located in column-major order, with its row, column and value.
+    #[test]
+    fn first_non_finite_entry_names_row_column_and_value() {
+        let mut m = nalgebra::Matrix3x2::<f64>::from_fn(|i, j| (i + 3 * j) as f64 - 2.5);
+        assert_eq!(first_non_finite_entry(&m), None);
+        m[(2, 1)] = f64::NEG_INFINITY;
+        assert_eq!(first_non_finite_entry(&m), Some((2, 1, f64::NEG_INFINITY)));
+        m[(1, 1)] = f64::INFINITY;
+        m[(2, 0)] = f64::INFINITY;
+        assert_eq!(first_non_finite_entry(&m), Some((2, 0, f64::INFINITY)));
     }
 
     #[test]

@@ -39,7 +39,7 @@
 //! ```
 
 use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
-use crate::math::{all_finite_slice, JointMatrix, JointVector};
+use crate::math::{all_finite_slice, first_non_finite_entry, JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
 
@@ -67,8 +67,10 @@ pub enum StackError {
         /// The capacity of the workspace.
         capacity: usize,
     },
-    /// A task's error or Jacobian holds a NaN or an infinity.
-    #[error("stack level {level} (task {task}): non-finite {what}")]
+    /// A task's error or Jacobian holds a NaN or an infinity (the first one, in column-major order).
+    #[error(
+        "stack level {level} (task {task}): {what} entry ({row}, {column}) = {value} is not finite"
+    )]
     NonFiniteTask {
         /// The level (0 = highest priority).
         level: usize,
@@ -76,6 +78,12 @@ pub enum StackError {
         task: usize,
         /// `"error"` or `"jacobian"`.
         what: &'static str,
+        /// The entry's row.
+        row: usize,
+        /// The entry's column (0 for the error vector).
+        column: usize,
+        /// The entry (NaN or ±∞).
+        value: f64,
     },
     /// The linear algebra failed (see the source).
     #[error("stack level {level}: {source}")]
@@ -286,16 +294,26 @@ fn checked_task<const N: usize>(
             capacity,
         });
     }
-    let non_finite = |what| StackError::NonFiniteTask {
-        level,
-        task: index,
-        what,
+    // The fast check first; the entry is located only to report it.
+    let non_finite = |what, entry: Option<(usize, usize, f64)>| {
+        let (row, column, value) = entry.unwrap_or((0, 0, f64::NAN));
+        StackError::NonFiniteTask {
+            level,
+            task: index,
+            what,
+            row,
+            column,
+            value,
+        }
     };
     if !all_finite_slice(task.error().as_slice()) {
-        return Err(non_finite("error"));
+        return Err(non_finite("error", first_non_finite_entry(task.error())));
     }
     if !all_finite_slice(task.jacobian().as_slice()) {
-        return Err(non_finite("jacobian"));
+        return Err(non_finite(
+            "jacobian",
+            first_non_finite_entry(task.jacobian()),
+        ));
     }
     Ok(task)
 }

@@ -66,14 +66,32 @@ fn non_finite_task_error_or_jacobian() {
             jacobian[(0, 5)] = f64::NAN;
         }
         let mut ws = StackWorkspace::new(&tasks);
-        assert_eq!(
-            solve_stack(&StackParameters::default(), &mut ws, &tasks, &[0, 1]).unwrap_err(),
+        let err = solve_stack(&StackParameters::default(), &mut ws, &tasks, &[0, 1]).unwrap_err();
+        // The error names the level, the task and the offending entry with its value.
+        let expected_entry = if what == "error" { (0, 0) } else { (0, 5) };
+        match err {
             StackError::NonFiniteTask {
                 level: 1,
                 task: 1,
-                what
+                what: found,
+                row,
+                column,
+                value,
+            } => {
+                assert_eq!(found, what);
+                assert_eq!((row, column), expected_entry);
+                assert!(if what == "error" {
+                    value == f64::INFINITY
+                } else {
+                    value.is_nan()
+                });
             }
-        );
+            other => panic!("unexpected error {other:?}"),
+        }
+        assert!(err.to_string().contains(&format!(
+            "{what} entry ({}, {})",
+            expected_entry.0, expected_entry.1
+        )));
     }
 }
 
