@@ -548,7 +548,7 @@ fn jacobi<const L: usize, const N: usize>(
                 if alpha <= negligible || beta <= negligible {
                     continue;
                 }
-                // The rotation's reciprocal is computed while the dot product is: off the dependency chain.
+                // The rotation's reciprocal does not depend on the dot product: asked for first, it can overlap with it.
                 let rotation = RotationNorms::new(alpha, beta);
                 let (x, y) = column_pair(a, p, q);
                 let gamma = dot(x, y);
