@@ -39,7 +39,7 @@
 //! ```
 
 use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
-use crate::math::{all_finite_slice, first_non_finite_entry, JointMatrix, JointVector};
+use crate::math::{JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
 
@@ -294,26 +294,23 @@ fn checked_task<const N: usize>(
             capacity,
         });
     }
-    // The fast check first; the entry is located only to report it.
-    let non_finite = |what, entry: Option<(usize, usize, f64)>| {
-        let (row, column, value) = entry.unwrap_or((0, 0, f64::NAN));
-        StackError::NonFiniteTask {
-            level,
-            task: index,
-            what,
-            row,
-            column,
-            value,
+    // One scalar scan of each contiguous (column-major) buffer; the index names the entry.
+    let rows = task.rows();
+    let buffers = [
+        ("error", task.error().as_slice()),
+        ("jacobian", task.jacobian().as_slice()),
+    ];
+    for (what, values) in buffers {
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(StackError::NonFiniteTask {
+                level,
+                task: index,
+                what,
+                row: k % rows,
+                column: k / rows,
+                value: values[k],
+            });
         }
-    };
-    if !all_finite_slice(task.error().as_slice()) {
-        return Err(non_finite("error", first_non_finite_entry(task.error())));
-    }
-    if !all_finite_slice(task.jacobian().as_slice()) {
-        return Err(non_finite(
-            "jacobian",
-            first_non_finite_entry(task.jacobian()),
-        ));
     }
     Ok(task)
 }
