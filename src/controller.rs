@@ -1,29 +1,51 @@
 //! The stack controller: push tasks when the robot has settled, predict when the avoidance will fail, remove the task
-//! that blocks it, and put it back when the danger has passed (MATH §6, (F20)–(F27), D3–D7).
+//! that blocks it, and put it back when the danger has passed (MATH §6, (F20)–(F27), D3–D7, D13).
 //!
-//! One control iteration ([`StackController::step`], MATH §6.5):
+//! # One iteration ([`StackController::step`], MATH §6.5)
 //!
-//! 1. the control law D1/\[M18\] runs on the current stack ([`crate::law::control_step`]);
-//! 2. **prediction** (D6, \[M22\]): `q̂ = q + T_pred u`, with `u = q̇_n − κ P^A_n ∇h` the law of the current stack. If
-//!    `h(q̂) > h_max`, `h(q̂) > h(q)`, `∇h(q) ≠ 0` and a task is stacked, one task is **removed**, chosen by the criteria
-//!    below;
-//! 3. otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ 5/μ`), a removed task is **put back**
-//!    first, at its original priority, if the prediction with it re-inserted stays below `h_max` (D7); else the next
-//!    task of the list is **pushed**.
+//! 1. The control law D1/\[M18\] runs on the current stack ([`crate::law::control_step`]): `u = q̇_n − κ P^A_n ∇h` and
+//!    the velocity sent `q̇ = u + e^{−μ(t−τ)}(q̇(τ⁻) − u(τ))`.
+//! 2. **Prediction** (D6). The configuration a horizon `T` ahead is predicted along the velocity *actually sent*, with
+//!    its transition term still decaying, and `u` held constant:
 //!
-//! The prediction uses `u`, not the blended `q̇` of D1: the transition term is a decaying memory of the *previous* stack
-//! and says nothing about the current one. Predicting with `q̇` right after a removal would see the old, dangerous
-//! velocity for about `1/μ` and remove a second, innocent task (observed on synthetic stacks); with `u`, a removal is
-//! judged by what the remaining stack will do, as the re-insertion test of D7 is. The condition `h(q̂) > h(q)` (our
-//! refinement of D6) keeps the controller from removing tasks while the current stack already moves away from the
-//! obstacle — for instance just after a removal, when the transition has carried `q` a little past the threshold.
+//!    ```text
+//!    q̂(T) = q + T u + (1 − e^{−μT})/μ · (q̇ − u)                 (the exact integral of D1 for a constant u)
+//!    T    = max(T_min, n_look / μ)                              (prediction_horizon, look_ahead_transitions)
+//!    ```
+//!
+//!    A change decided now needs about `1/μ` to take effect (the transition of D1), so the horizon is a number of
+//!    transitions, not of periods; the `(q̇ − u)` term carries the motion that the transition will still make, so a
+//!    removal is judged on where the robot will really go.
+//! 3. **Removal** (D6), when `h(q̂) > h_max`, `h(q̂) > h(q)` (the danger grows), the gradient `∇h(q)` — or `∇h(q̂)`
+//!    when the robot is still outside every activation band — is non-zero, and the last change is at least
+//!    `n_change/μ` old (**one change per transition**: no cascade while the previous change is still being blended
+//!    in). The candidates are the stacked tasks ranked by the paper's criteria (C1', C2, C2', D4). The first candidate
+//!    that (a) has been removed fewer than `max_removals` times, (b) is not the last task stacked, (c) **helps** — the
+//!    law of the stack without it, predicted the same way, gives a smaller `h(q̂)` — and (d) passes the optional
+//!    **guard** cost (a removal must not make the guard's prediction worse: in the simulation, the visibility of the
+//!    target, so that removing the centroid cannot let the target leave the image) is removed. When no candidate
+//!    qualifies, nothing is removed: the controller then behaves as the stack with projected gradient, which is
+//!    what "never worse than stack + gradient" needs.
+//! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`):
+//!    * a removed task is **put back** (D7) at its original priority when it has stayed out for its dwell time
+//!      (`dwell · 2^{k−1}` after its `k`-th removal: each new removal doubles the wait) and the law with it back,
+//!      predicted over the longer horizon `n_back · T`, keeps `h(q̂) ≤ r_back · h_max` (**hysteresis**: a lower
+//!      threshold than the removal's);
+//!    * if a removed task cannot come back for `stall_timeout` seconds of settled robot, the controller **falls back**
+//!      (D13): the task is put back without the test, and no task is removed for the rest of the run — from there on
+//!      the law is the stack with projected gradient. The event log says so ([`EventKind::Fallback`]);
+//!    * when no task is out, the next task of the list is **pushed** (D5).
+//!
+//! [`DecisionRule::Paper`] keeps the paper's literal rule (MATH §6.2–6.4 as first implemented: a fixed horizon along
+//! `u`, any task removable, re-insertion at the removal threshold with no dwell, no fallback) for comparison; its
+//! measured outcome is in the README (convergence-domain study).
 //!
 //! A change decided at iteration `k` takes effect at once (§6.5: "remove, τ ← t, recompute"): the law is solved again
-//! on the new stack and blended from the velocity sent at iteration `k − 1`, so `q̇(τ⁺) = q̇(τ⁻)` exactly (D1). At most
-//! one change happens per iteration. Tasks are identified by their index in the task list, which is also
-//! their priority (index 0 highest).
+//! on the new stack and blended from the velocity sent at iteration `k − 1` (or the one the caller reported with
+//! [`StackController::set_sent_velocity`]), so `q̇(τ⁺) = q̇(τ⁻)` exactly (D1), and the transition starts at that
+//! iteration only. Tasks are identified by their index in the task list, which is also their priority (0 highest).
 //!
-//! **Criteria** (§6.3), for every stacked task `i` with its own Jacobian `J_i` and the gradient `g = ∇h(q)`:
+//! **Criteria** (§6.3), for every stacked task `i` with its own Jacobian `J_i` and the gradient `g`:
 //!
 //! ```text
 //! [M23]/D3  C1_i  = −(J_i⁺ e_i)ᵀ g ,   C1'_i = C1_i / ‖J_i⁺ e_i‖   (0 when ‖J_i⁺ e_i‖ is below a floor)   [M24]
@@ -32,10 +54,10 @@
 //! D4        S_i   = (C1'_i + C2'_i) / ‖g‖ ∈ [−1, 2]                  (remove argmax, default)
 //! ```
 //!
-//! Every push, removal and re-insertion is recorded in an event log ([`StackEvent`]) with its iteration, time and task;
-//! removals also record the predicted cost, the joint that dominates the predicted gradient, the cost term that dominates
-//! the predicted cost (for a [`crate::avoidance::CompositeCost`] of joint limits, obstacles and visibility), and every
-//! task's criteria.
+//! Every push, removal, re-insertion and fallback is recorded in an event log ([`StackEvent`]) with its iteration,
+//! time, task and the jump the law alone would have made there (`‖u(τ) − q̇(τ⁻)‖`, which the transition term absorbs);
+//! removals also record the prediction, the joint that dominates the predicted gradient, the cost term that dominates
+//! the predicted cost, and every task's criteria; re-insertions the prediction with the task back.
 
 use crate::avoidance::{Cost, CostError};
 use crate::law::{
@@ -68,6 +90,14 @@ pub enum ControllerError {
         /// The number given.
         found: usize,
     },
+    /// The velocity reported as sent holds a NaN or an infinity.
+    #[error("sent velocity: joint {joint} = {value} is not finite")]
+    NonFiniteSentVelocity {
+        /// The first offending joint (0-based).
+        joint: usize,
+        /// Its value.
+        value: f64,
+    },
     /// The control law failed.
     #[error(transparent)]
     Law(#[from] LawError),
@@ -89,27 +119,61 @@ pub enum RemovalCriterion {
     KernelProjection,
 }
 
+/// Which rule decides removals and re-insertions (the criteria above only choose *which* task).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DecisionRule {
+    /// The crate's rule (D6, D7, D13; see the module docs): prediction along the velocity sent over a horizon in
+    /// transitions, one change per transition, helpful and guarded removals that keep one task stacked, re-insertion
+    /// with hysteresis and a doubling dwell, fallback to the stack with gradient when a task cannot come back.
+    #[default]
+    Robust,
+    /// The paper's rule as first read (MATH §6.2–6.4): `q̂ = q + T_min u`, remove the best-scored task when
+    /// `h(q̂) > h_max` and `h(q̂) > h(q)`, put it back when settled if the prediction with it stays `≤ h_max`. No dwell,
+    /// no guard, no fallback; every task may be removed. Measured to cascade and chatter off the designed scenario.
+    Paper,
+}
+
 /// The thresholds of the controller, with their units. Immutable once the controller is built.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ControllerParameters {
     /// `ε_add`: the stack has settled when the Euclidean norm of the stack velocity `‖q̇_n‖` is below this (D5). Its unit
-    /// mixes the joints' units per second (m/s for prismatic, rad/s for revolute joints).
+    /// mixes the joints' units per second (m/s for prismatic, rad/s for revolute joints). Default 0.01.
     pub settle_velocity: f64,
-    /// After a change, wait `t − τ ≥ settle_transitions / μ` seconds before the next push (D5; 5 by default, when the
-    /// transition term has decayed to `e^{−5} ≈ 0.7 %`).
+    /// `n_settle`: after a change, wait `t − τ ≥ n_settle / μ` before the next push or re-insertion (D5; default 5,
+    /// when the transition term has decayed to `e^{−5} ≈ 0.7 %`).
     pub settle_transitions: f64,
-    /// `T_pred` (s): the prediction horizon `q̂ = q + T_pred u` of D6 / \[M22\], with `u` the current stack's law
-    /// (not the blended `q̇`: see the module docs).
+    /// `T_min` (s): the shortest prediction horizon (D6; default 0.05 s). With [`DecisionRule::Paper`] it is the
+    /// horizon.
     pub prediction_horizon: f64,
-    /// `h_max`: a task is removed when `h(q̂) > h_max` (D6), in the cost's unit. `None`: the caller's default (for the
-    /// joint-limit cost, [`crate::avoidance::JointLimits::default_removal_threshold`]): the cost's
-    /// [`Cost::default_removal_threshold`] (D6), and no removal for a cost without one.
+    /// `n_look`: the prediction horizon is `T = max(T_min, n_look/μ)` (D6; default 2: a change needs about `1/μ` to
+    /// take effect, and the prediction must see beyond it).
+    pub look_ahead_transitions: f64,
+    /// `h_max`: a task is removed when `h(q̂) > h_max` (D6), in the cost's unit. `None`: the cost's
+    /// [`Cost::default_removal_threshold`] (for joint limits, one joint half-way through its activation band), and no
+    /// removal for a cost without one.
     pub removal_threshold: Option<f64>,
+    /// `r_back` in `(0, 1]`: a removed task comes back only if the prediction with it keeps `h(q̂) ≤ r_back · h_max`
+    /// (D7 hysteresis; default 0.5).
+    pub reinsertion_ratio: f64,
+    /// `n_back ≥ 1`: the re-insertion test predicts over `n_back · T` (D7; default 2).
+    pub reinsertion_look_ahead: f64,
+    /// `n_change`: no removal within `n_change / μ` of the last change (D6, one change per transition; default 1).
+    pub change_transitions: f64,
+    /// `T_dwell` (s): a task stays out at least `T_dwell · 2^{k−1}` after its `k`-th removal (D7; default 1 s).
+    pub reinsertion_dwell: f64,
+    /// A task removed this many times is no longer a removal candidate (D7; default 4).
+    pub max_removals: u32,
+    /// `T_stall` (s): a removed task that cannot come back while the robot stays settled this long is put back anyway,
+    /// and removals stop (D13 fallback; default 5 s).
+    pub stall_timeout: f64,
     /// Whether tasks may be removed at all (`false`: push-only, as the paper's runs 2 and 3).
     pub allow_removal: bool,
     /// The criterion that picks the task to remove.
     pub criterion: RemovalCriterion,
+    /// The decision rule.
+    pub rule: DecisionRule,
 }
 
 impl Default for ControllerParameters {
@@ -118,12 +182,25 @@ impl Default for ControllerParameters {
             settle_velocity: 0.01,
             settle_transitions: 5.0,
             prediction_horizon: 0.05,
+            look_ahead_transitions: 2.0,
             removal_threshold: None,
+            reinsertion_ratio: 0.5,
+            reinsertion_look_ahead: 2.0,
+            change_transitions: 1.0,
+            reinsertion_dwell: 1.0,
+            max_removals: 4,
+            stall_timeout: 5.0,
             allow_removal: true,
             criterion: RemovalCriterion::Combined,
+            rule: DecisionRule::Robust,
         }
     }
 }
+
+/// Physical ranges the time parameters must lie in: a horizon or a wait beyond a day is a unit error.
+const MAX_SECONDS: f64 = 86_400.0;
+/// The largest count of transitions (`1/μ`) a wait or horizon may span.
+const MAX_TRANSITIONS: f64 = 1e4;
 
 impl ControllerParameters {
     /// Checks every parameter.
@@ -131,36 +208,53 @@ impl ControllerParameters {
     /// # Errors
     /// [`ControllerError::InvalidParameter`] naming the first offending parameter.
     pub fn validate(&self) -> Result<(), ControllerError> {
-        let invalid = |name, value, expected| {
-            Err(ControllerError::InvalidParameter {
-                name,
-                value,
-                expected,
-            })
-        };
-        if !(self.settle_velocity.is_finite() && self.settle_velocity > 0.0) {
-            return invalid("settle_velocity", self.settle_velocity, "finite and > 0");
-        }
-        if !(self.settle_transitions.is_finite() && self.settle_transitions >= 0.0) {
-            return invalid(
-                "settle_transitions",
-                self.settle_transitions,
-                "finite and ≥ 0",
-            );
-        }
-        if !(self.prediction_horizon.is_finite() && self.prediction_horizon >= 0.0) {
-            return invalid(
-                "prediction_horizon",
-                self.prediction_horizon,
-                "finite and ≥ 0",
-            );
-        }
-        if let Some(h_max) = self.removal_threshold {
-            if !(h_max.is_finite() && h_max > 0.0) {
-                return invalid("removal_threshold", h_max, "finite and > 0");
+        let check = |name: &'static str, value: f64, ok: bool, expected: &'static str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(ControllerError::InvalidParameter {
+                    name,
+                    value,
+                    expected,
+                })
             }
+        };
+        let in_range = |v: f64, low: f64, high: f64| v.is_finite() && low <= v && v <= high;
+        let v = self.settle_velocity;
+        check("settle_velocity", v, v.is_finite() && v > 0.0 && v < 1e6, "finite, > 0 and < 1e6")?;
+        let v = self.settle_transitions;
+        check("settle_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        let v = self.prediction_horizon;
+        check("prediction_horizon", v, in_range(v, 0.0, MAX_SECONDS), "in [0, 86400] s")?;
+        let v = self.look_ahead_transitions;
+        check("look_ahead_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        if let Some(h_max) = self.removal_threshold {
+            check("removal_threshold", h_max, h_max.is_finite() && h_max > 0.0, "finite and > 0")?;
         }
+        let v = self.reinsertion_ratio;
+        check("reinsertion_ratio", v, v.is_finite() && v > 0.0 && v <= 1.0, "in (0, 1]")?;
+        let v = self.reinsertion_look_ahead;
+        check("reinsertion_look_ahead", v, in_range(v, 1.0, MAX_TRANSITIONS), "in [1, 1e4]")?;
+        let v = self.change_transitions;
+        check("change_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        let v = self.reinsertion_dwell;
+        check("reinsertion_dwell", v, in_range(v, 0.0, MAX_SECONDS), "in [0, 86400] s")?;
+        let v = self.stall_timeout;
+        check("stall_timeout", v, v.is_finite() && v > 0.0 && v <= MAX_SECONDS, "in (0, 86400] s")?;
+        let v = f64::from(self.max_removals);
+        check("max_removals", v, self.max_removals >= 1, "≥ 1")?;
         Ok(())
+    }
+
+    /// `T = max(T_min, n_look/μ)` (s), the removal prediction's horizon for a transition gain `μ` (s⁻¹); `T_min` alone
+    /// with [`DecisionRule::Paper`].
+    pub fn horizon(&self, transition_gain: f64) -> f64 {
+        match self.rule {
+            DecisionRule::Robust => self
+                .prediction_horizon
+                .max(self.look_ahead_transitions / transition_gain),
+            DecisionRule::Paper => self.prediction_horizon,
+        }
     }
 }
 
@@ -202,6 +296,20 @@ pub enum EventKind {
     Remove,
     /// A removed task was put back at its original priority (D7).
     Reinsert,
+    /// A removed task that could not come back was put back without the test, and removals stopped (D13).
+    Fallback,
+}
+
+impl EventKind {
+    /// The verb used in logs and figures: `push`, `remove`, `reinsert`, `fallback`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Push => "push",
+            Self::Remove => "remove",
+            Self::Reinsert => "reinsert",
+            Self::Fallback => "fallback",
+        }
+    }
 }
 
 /// Why a task was removed.
@@ -211,6 +319,10 @@ pub struct RemovalReport {
     pub predicted_cost: f64,
     /// The threshold `h_max`.
     pub threshold: f64,
+    /// The predicted cost with the task removed (smaller than `predicted_cost` under [`DecisionRule::Robust`]).
+    pub predicted_cost_without: f64,
+    /// The prediction horizon `T` (s).
+    pub horizon: f64,
     /// The joint with the largest component of the predicted gradient `∇h(q̂)` (0-based).
     pub joint: usize,
     /// The cost term that dominates the predicted cost `h(q̂)` ([`Cost::dominant_term`]: `"joint_limits"`,
@@ -218,6 +330,17 @@ pub struct RemovalReport {
     pub cost: String,
     /// The criteria of every stacked task at the removal.
     pub criteria: Vec<TaskCriteria>,
+}
+
+/// Why a removed task came back.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReinsertionReport {
+    /// The cost predicted with the task back, `h(q̂)` over the re-insertion horizon.
+    pub predicted_cost: f64,
+    /// The re-insertion threshold `r_back · h_max` it was compared with.
+    pub threshold: f64,
+    /// How long the task was out (s).
+    pub removed_for: f64,
 }
 
 /// One change of the stack, as the event log records it.
@@ -228,12 +351,17 @@ pub struct StackEvent {
     pub iteration: usize,
     /// The time of that iteration (s).
     pub time: f64,
-    /// Push, removal or re-insertion.
+    /// Push, removal, re-insertion or fallback.
     pub kind: EventKind,
     /// The task's index in the task list.
     pub task: usize,
+    /// `‖u(τ) − q̇(τ⁻)‖`: the jump the law alone would have made at this change, which the transition term of D1
+    /// turns into a ramp (D14).
+    pub law_jump: f64,
     /// For a removal, why.
     pub removal: Option<RemovalReport>,
+    /// For a re-insertion or a fallback, the prediction it was judged on.
+    pub reinsertion: Option<ReinsertionReport>,
 }
 
 /// The result of one controller iteration.
@@ -245,10 +373,33 @@ pub struct ControllerStep<const N: usize> {
     pub stack_velocity_norm: f64,
     /// `h(q)`.
     pub cost: f64,
-    /// `h(q̂)`, the cost predicted at `q̂ = q + T_pred u` (equal to `h(q)` without a cost or with a zero horizon).
+    /// `h(q̂)`, the cost predicted over the horizon (equal to `h(q)` without a cost).
     pub predicted_cost: f64,
     /// The change made at this iteration, if any.
     pub event: Option<EventKind>,
+}
+
+/// What the controller is waiting for, to say why a run that ran out of time did not converge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ControllerStatus {
+    /// Every task of the list is stacked.
+    Complete,
+    /// Tasks remain to be pushed; the stack has not settled (`‖q̇_n‖ ≥ ε_add`) since the last change.
+    Pushing {
+        /// The next task to push.
+        next: usize,
+        /// The last `‖q̇_n‖`.
+        stack_velocity_norm: f64,
+    },
+    /// A removed task waits to come back.
+    Reinserting {
+        /// The task.
+        task: usize,
+        /// The last cost predicted with it back (`NaN` before the first test: the robot has not settled yet).
+        predicted_cost: f64,
+        /// The re-insertion threshold.
+        threshold: f64,
+    },
 }
 
 /// The stack controller's state: which tasks are stacked, pending and removed, the transition memory, the event log.
@@ -261,17 +412,53 @@ pub struct StackController<const N: usize> {
     task_count: usize,
     stacked: Vec<usize>,
     next_push: usize,
+    /// Removed tasks, in priority order.
     removed: Vec<usize>,
+    /// Per task: how many times it was removed, and when last.
+    removal_count: Vec<u32>,
+    removed_at: Vec<f64>,
+    /// The time since which the robot has been settled while a task waits to come back.
+    settled_since: Option<f64>,
+    /// The last re-insertion test: (task, predicted cost, threshold).
+    last_reinsertion_test: Option<(usize, f64, f64)>,
+    /// D13: removals stopped after a fallback.
+    fallback: bool,
     change_pending: bool,
     last_change_time: f64,
+    last_stack_velocity_norm: f64,
     law_workspace: ControlWorkspace<N>,
     trial_workspace: StackWorkspace<N>,
     trial_order: Vec<usize>,
     criteria: Vec<TaskCriteria>,
+    /// Removal candidates, best score first.
+    ranking: Vec<TaskCriteria>,
     jacobian_work: TaskJacobian<N>,
     /// One decomposition per task, each warm-started from the same task's previous criteria.
     svds: Vec<ColumnSvd<N>>,
     events: Vec<StackEvent>,
+}
+
+/// What the prediction of D6 needs: the configuration, the velocity sent, the gradient, the horizon and `μ`.
+struct Prediction<'a, const N: usize> {
+    q: &'a JointVector<N>,
+    sent: &'a JointVector<N>,
+    gradient: &'a JointVector<N>,
+    transition_gain: f64,
+    rule: DecisionRule,
+}
+
+impl<const N: usize> Prediction<'_, N> {
+    /// `q̂(T) = q + T u + (1 − e^{−μT})/μ (q̇ − u)` ([`DecisionRule::Robust`]) or `q + T u` ([`DecisionRule::Paper`]).
+    fn at(&self, law: &JointVector<N>, horizon: f64) -> JointVector<N> {
+        let mut predicted = self.q + law * horizon;
+        if self.rule == DecisionRule::Robust {
+            let mu = self.transition_gain;
+            let memory = -(-mu * horizon).exp_m1() / mu;
+            predicted.axpy(memory, self.sent, 1.0);
+            predicted.axpy(-memory, law, 1.0);
+        }
+        predicted
+    }
 }
 
 impl<const N: usize> StackController<N> {
@@ -286,21 +473,29 @@ impl<const N: usize> StackController<N> {
     ) -> Result<Self, ControllerError> {
         parameters.validate()?;
         let max_rows = tasks.iter().map(TaskValue::rows).max().unwrap_or(1);
+        let count = tasks.len();
         Ok(Self {
             parameters,
-            task_count: tasks.len(),
-            stacked: Vec::with_capacity(tasks.len()),
+            task_count: count,
+            stacked: Vec::with_capacity(count),
             next_push: 0,
-            removed: Vec::with_capacity(tasks.len()),
-            change_pending: true,
+            removed: Vec::with_capacity(count),
+            removal_count: vec![0; count],
+            removed_at: vec![0.0; count],
+            settled_since: None,
+            last_reinsertion_test: None,
+            fallback: false,
+            change_pending: false,
             last_change_time: 0.0,
+            last_stack_velocity_norm: f64::INFINITY,
             law_workspace: ControlWorkspace::new(tasks),
             trial_workspace: StackWorkspace::new(tasks),
-            trial_order: Vec::with_capacity(tasks.len()),
-            criteria: Vec::with_capacity(tasks.len()),
+            trial_order: Vec::with_capacity(count),
+            criteria: Vec::with_capacity(count),
+            ranking: Vec::with_capacity(count),
             jacobian_work: TaskJacobian::zeros(max_rows),
-            svds: vec![ColumnSvd::default(); tasks.len()],
-            events: Vec::with_capacity(4 * tasks.len() + 8),
+            svds: vec![ColumnSvd::default(); count],
+            events: Vec::with_capacity(4 * count + 8),
         })
     }
 
@@ -314,7 +509,7 @@ impl<const N: usize> StackController<N> {
         &self.stacked
     }
 
-    /// The tasks removed and waiting to be put back.
+    /// The tasks removed and waiting to be put back, in priority order.
     pub fn removed(&self) -> &[usize] {
         &self.removed
     }
@@ -322,6 +517,33 @@ impl<const N: usize> StackController<N> {
     /// `true` when every task of the list is stacked (none pending, none removed).
     pub fn is_complete(&self) -> bool {
         self.next_push == self.task_count && self.removed.is_empty()
+    }
+
+    /// `true` once the controller has fallen back to the stack with gradient (D13): no task is removed any more.
+    pub fn has_fallen_back(&self) -> bool {
+        self.fallback
+    }
+
+    /// What the controller waits for (to explain a run that did not converge in its budget).
+    pub fn status(&self) -> ControllerStatus {
+        if let Some(&task) = self.removed.first() {
+            let (predicted_cost, threshold) = match self.last_reinsertion_test {
+                Some((tested, predicted, threshold)) if tested == task => (predicted, threshold),
+                _ => (f64::NAN, f64::NAN),
+            };
+            ControllerStatus::Reinserting {
+                task,
+                predicted_cost,
+                threshold,
+            }
+        } else if self.next_push < self.task_count {
+            ControllerStatus::Pushing {
+                next: self.next_push,
+                stack_velocity_norm: self.last_stack_velocity_norm,
+            }
+        } else {
+            ControllerStatus::Complete
+        }
     }
 
     /// The event log.
@@ -339,47 +561,50 @@ impl<const N: usize> StackController<N> {
         &self.criteria
     }
 
-    fn push_next(&mut self, iteration: usize, time: f64) {
-        let task = self.next_push;
-        self.next_push += 1;
-        self.insert_by_priority(task);
-        self.record(iteration, time, EventKind::Push, task, None);
-    }
-
-    fn insert_by_priority(&mut self, task: usize) {
-        let at = self.stacked.partition_point(|&t| t < task);
-        self.stacked.insert(at, task);
-    }
-
-    fn record(
-        &mut self,
-        iteration: usize,
-        time: f64,
-        kind: EventKind,
-        task: usize,
-        removal: Option<RemovalReport>,
-    ) {
-        self.change_pending = true;
-        self.last_change_time = time;
-        self.events.push(StackEvent {
-            iteration,
-            time,
-            kind,
-            task,
-            removal,
-        });
+    /// Tells the controller the velocity the robot actually received at the last iteration (after the caller's
+    /// saturation, for instance), so that the next stack change starts its transition from it: `q̇(τ⁻)` is what the
+    /// robot got, and continuity holds for the robot.
+    ///
+    /// # Errors
+    /// [`ControllerError::NonFiniteSentVelocity`].
+    pub fn set_sent_velocity(&mut self, velocity: &JointVector<N>) -> Result<(), ControllerError> {
+        if let Some((joint, value)) = crate::math::first_non_finite(velocity) {
+            return Err(ControllerError::NonFiniteSentVelocity { joint, value });
+        }
+        self.law_workspace.set_sent_velocity(velocity);
+        Ok(())
     }
 
     /// One iteration at time `time` (s) for the configuration `q`, with the tasks evaluated at `q`, an optional
-    /// avoidance cost, and the law (its `κ` may be 0 for no avoidance term).
+    /// avoidance cost, and the law (its `κ` may be 0 for no avoidance term). As [`Self::step_guarded`] without guard.
     ///
     /// # Errors
-    /// A task list of another length than at construction, law and cost failures.
+    /// As [`Self::step_guarded`].
     pub fn step(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
+        q: &JointVector<N>,
+        iteration: usize,
+        time: f64,
+    ) -> Result<ControllerStep<N>, ControllerError> {
+        self.step_guarded(law, tasks, cost, None, q, iteration, time)
+    }
+
+    /// One iteration, with a `guard` cost that a removal must not make worse (D6 (d); the simulation guards the
+    /// visibility of the target). On error nothing is sent: the controller keeps the transition memory of the last
+    /// velocity it returned.
+    ///
+    /// # Errors
+    /// A task list of another length than at construction, law and cost failures.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_guarded(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: Option<&dyn Cost<N>>,
+        guard: Option<&dyn Cost<N>>,
         q: &JointVector<N>,
         iteration: usize,
         time: f64,
@@ -390,18 +615,20 @@ impl<const N: usize> StackController<N> {
                 found: tasks.len(),
             });
         }
-        let first_step = self.events.is_empty() && self.next_push == 0;
-        if first_step && self.task_count > 0 {
+        if self.events.is_empty() && self.task_count > 0 {
             // The first task is stacked from the first iteration, at its time.
             self.push_next(iteration, time);
+            self.change_pending = true;
         }
         let change = if self.change_pending {
             StackChange::Changed
         } else {
             StackChange::Unchanged
         };
-        // q̇(τ⁻) of a change decided at this iteration: the velocity sent at the previous one.
-        let velocity_sent_before = *self.law_workspace.last_output().velocity();
+        // The transition memory before this step, restored if nothing is sent; its velocity is q̇(τ⁻) of a change
+        // decided at this iteration.
+        let memory = self.law_workspace.memory();
+        let velocity_sent_before = memory.1;
         let output = control_step(
             law,
             &mut self.law_workspace,
@@ -413,36 +640,24 @@ impl<const N: usize> StackController<N> {
             change,
         )?
         .clone();
-        let mut result = self.summarize(&output);
         self.change_pending = false;
-        let gradient = *output.gradient();
-        let law_velocity = *output.law();
-        let decided = self.decide(
-            law,
-            tasks,
-            cost,
-            q,
-            &gradient,
-            &law_velocity,
-            iteration,
-            time,
-            &mut result,
-        );
-        let event = match decided {
+        if change == StackChange::Changed {
+            self.note_law_jump(iteration, &output, &velocity_sent_before);
+        }
+        let mut result = self.summarize(&output);
+        let event = match self.decide(law, tasks, cost, guard, q, &output, iteration, time, &mut result) {
             Ok(event) => event,
             Err(error) => {
-                // Nothing is sent: the next step must blend from the velocity actually sent before.
-                self.law_workspace.reset(&velocity_sent_before);
+                self.law_workspace.restore(memory);
                 self.change_pending = change == StackChange::Changed;
                 return Err(error);
             }
         };
         if let Some(kind) = event {
             // MATH §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
-            // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1).
-            self.law_workspace.reset(&velocity_sent_before);
-            let changed = StackChange::Changed;
-            let output = control_step(
+            // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1). The transition starts here, once.
+            self.law_workspace.restore(memory);
+            let output = match control_step(
                 law,
                 &mut self.law_workspace,
                 tasks,
@@ -450,15 +665,46 @@ impl<const N: usize> StackController<N> {
                 cost,
                 q,
                 time,
-                changed,
-            )?
-            .clone();
+                StackChange::Changed,
+            ) {
+                Ok(output) => output.clone(),
+                Err(error) => {
+                    // The stack has changed: the next step starts the transition.
+                    self.change_pending = true;
+                    return Err(error.into());
+                }
+            };
+            self.note_law_jump(iteration, &output, &velocity_sent_before);
             let predicted_cost = result.predicted_cost;
             result = self.summarize(&output);
             result.predicted_cost = predicted_cost;
             result.event = Some(kind);
         }
         Ok(result)
+    }
+
+    /// Fills `law_jump` of the event made at `iteration`: `‖u(τ) − q̇(τ⁻)‖`.
+    fn note_law_jump(
+        &mut self,
+        iteration: usize,
+        output: &ControlOutput<N>,
+        velocity_before: &JointVector<N>,
+    ) {
+        if let Some(event) = self.events.last_mut().filter(|e| e.iteration == iteration) {
+            event.law_jump = (output.law() - velocity_before).norm();
+        }
+    }
+
+    fn summarize(&mut self, output: &ControlOutput<N>) -> ControllerStep<N> {
+        let stack_velocity_norm = self.law_workspace.stack_solution().velocity().norm();
+        self.last_stack_velocity_norm = stack_velocity_norm;
+        ControllerStep {
+            velocity: *output.velocity(),
+            stack_velocity_norm,
+            cost: output.cost(),
+            predicted_cost: output.cost(),
+            event: None,
+        }
     }
 
     /// `h_max`: the parameter, else the cost's D6 default, else no removal.
@@ -469,73 +715,194 @@ impl<const N: usize> StackController<N> {
             .unwrap_or(f64::INFINITY)
     }
 
-    fn summarize(&self, output: &ControlOutput<N>) -> ControllerStep<N> {
-        ControllerStep {
-            velocity: *output.velocity(),
-            stack_velocity_norm: self.law_workspace.stack_solution().velocity().norm(),
-            cost: output.cost(),
-            predicted_cost: output.cost(),
-            event: None,
-        }
+    fn push_next(&mut self, iteration: usize, time: f64) {
+        let task = self.next_push;
+        self.next_push += 1;
+        self.insert_by_priority(task);
+        self.record(StackEvent {
+            iteration,
+            time,
+            kind: EventKind::Push,
+            task,
+            law_jump: 0.0,
+            removal: None,
+            reinsertion: None,
+        });
     }
 
-    /// Steps 4–5 of MATH §6.5: a removal (D6) or else a re-insertion (D7) or a push (D5), applied to the stack and
-    /// logged. `result` receives the predicted cost.
+    fn insert_by_priority(&mut self, task: usize) {
+        let at = self.stacked.partition_point(|&t| t < task);
+        self.stacked.insert(at, task);
+    }
+
+    fn record(&mut self, event: StackEvent) {
+        self.last_change_time = event.time;
+        self.settled_since = None;
+        self.events.push(event);
+    }
+
+    /// Steps 2–4 of the module docs: a removal (D6), else a re-insertion (D7), a fallback (D13) or a push (D5),
+    /// applied to the stack and logged. `result` receives the predicted cost.
     #[allow(clippy::too_many_arguments)]
     fn decide(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
+        guard: Option<&dyn Cost<N>>,
         q: &JointVector<N>,
-        gradient: &JointVector<N>,
-        law_velocity: &JointVector<N>,
+        output: &ControlOutput<N>,
         iteration: usize,
         time: f64,
         result: &mut ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
         self.criteria.clear();
-        if let Some(cost) = cost {
-            let predicted = q + law_velocity * self.parameters.prediction_horizon;
-            let mut predicted_gradient = JointVector::zeros();
-            result.predicted_cost = cost.value_and_gradient(&predicted, &mut predicted_gradient)?;
-            if gradient.norm() > 0.0 {
-                self.compute_criteria(law, tasks, gradient)?;
-            }
-            let threshold = self.removal_threshold(cost);
-            let may_remove =
-                self.parameters.allow_removal && !self.stacked.is_empty() && gradient.norm() > 0.0;
-            let worsening = result.predicted_cost > result.cost;
-            if may_remove && worsening && result.predicted_cost > threshold {
+        let prediction = Prediction {
+            q,
+            sent: output.velocity(),
+            gradient: output.gradient(),
+            transition_gain: law.transition_gain(),
+            rule: self.parameters.rule,
+        };
+        let Some(cost) = cost else {
+            return self.settle_and_add(law, tasks, None, &prediction, iteration, time, result);
+        };
+        let horizon = self.parameters.horizon(law.transition_gain());
+        let predicted = prediction.at(output.law(), horizon);
+        let mut predicted_gradient = JointVector::zeros();
+        result.predicted_cost = cost.value_and_gradient(&predicted, &mut predicted_gradient)?;
+        // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
+        let danger = if output.gradient().norm() > 0.0 || self.parameters.rule == DecisionRule::Paper
+        {
+            *output.gradient()
+        } else {
+            predicted_gradient
+        };
+        if danger.norm() > 0.0 {
+            self.compute_criteria(law, tasks, &danger)?;
+        }
+        let threshold = self.removal_threshold(cost);
+        let danger_predicted = result.predicted_cost > threshold && result.predicted_cost > result.cost;
+        if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time) {
+            let choice = self.choose_removal(law, tasks, cost, guard, &prediction, horizon, result.predicted_cost, &predicted)?;
+            if let Some((task, predicted_cost_without)) = choice {
                 let dominant = cost.dominant_term(&predicted)?.to_owned();
-                let task = self.choose_removal();
                 self.stacked.retain(|&t| t != task);
-                self.removed.push(task);
+                let at = self.removed.partition_point(|&t| t < task);
+                self.removed.insert(at, task);
+                self.removal_count[task] += 1;
+                self.removed_at[task] = time;
+                self.last_reinsertion_test = None;
                 let report = RemovalReport {
                     predicted_cost: result.predicted_cost,
                     threshold,
+                    predicted_cost_without,
+                    horizon,
                     joint: predicted_gradient.iamax(),
                     cost: dominant,
                     criteria: self.criteria.clone(),
                 };
-                self.record(iteration, time, EventKind::Remove, task, Some(report));
+                self.record(StackEvent {
+                    iteration,
+                    time,
+                    kind: EventKind::Remove,
+                    task,
+                    law_jump: 0.0,
+                    removal: Some(report),
+                    reinsertion: None,
+                });
                 return Ok(Some(EventKind::Remove));
             }
         }
-        if !self.settled(law, time, result.stack_velocity_norm) {
+        self.settle_and_add(law, tasks, Some(cost), &prediction, iteration, time, result)
+    }
+
+    /// Whether a removal may be made now: removals allowed, no fallback, and (robust rule) the last change at least
+    /// `n_change/μ` old.
+    fn may_remove(&self, law: &ControlLaw, time: f64) -> bool {
+        let parameters = &self.parameters;
+        let spaced = match parameters.rule {
+            DecisionRule::Robust => {
+                time - self.last_change_time
+                    >= parameters.change_transitions / law.transition_gain()
+            }
+            DecisionRule::Paper => true,
+        };
+        parameters.allow_removal && !self.fallback && !self.stacked.is_empty() && spaced
+    }
+
+    /// D6: the task to remove and the cost predicted without it, or `None` when no candidate qualifies.
+    #[allow(clippy::too_many_arguments)]
+    fn choose_removal(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: &dyn Cost<N>,
+        guard: Option<&dyn Cost<N>>,
+        prediction: &Prediction<'_, N>,
+        horizon: f64,
+        predicted_cost: f64,
+        predicted: &JointVector<N>,
+    ) -> Result<Option<(usize, f64)>, ControllerError> {
+        let criterion = self.parameters.criterion;
+        self.ranking.clear();
+        self.ranking.extend_from_slice(&self.criteria);
+        // Best score first; on equal scores the lowest priority (largest index) first.
+        self.ranking.sort_unstable_by(|a, b| {
+            b.score(criterion)
+                .total_cmp(&a.score(criterion))
+                .then(b.task.cmp(&a.task))
+        });
+        let robust = self.parameters.rule == DecisionRule::Robust;
+        if robust && self.stacked.len() <= 1 {
             return Ok(None);
         }
-        if let Some(task) = self.reinsertable(law, tasks, cost, q, gradient)? {
-            self.removed.retain(|&t| t != task);
-            self.insert_by_priority(task);
-            self.record(iteration, time, EventKind::Reinsert, task, None);
-            return Ok(Some(EventKind::Reinsert));
-        }
-        if self.removed.is_empty() && self.next_push < self.task_count {
-            self.push_next(iteration, time);
-            return Ok(Some(EventKind::Push));
+        let guard_now = match guard {
+            Some(guard) if robust => guard_value(guard, predicted)?,
+            _ => 0.0,
+        };
+        for rank in 0..self.ranking.len() {
+            let task = self.ranking[rank].task;
+            if robust && self.removal_count[task] >= self.parameters.max_removals {
+                continue;
+            }
+            self.trial_order.clear();
+            self.trial_order.extend(self.stacked.iter().copied().filter(|&t| t != task));
+            let without = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let predicted_without = cost.value(&without)?;
+            if !robust {
+                return Ok(Some((task, predicted_without)));
+            }
+            if predicted_without >= predicted_cost {
+                continue;
+            }
+            if let Some(guard) = guard {
+                if guard_value(guard, &without)? > guard_now {
+                    continue;
+                }
+            }
+            return Ok(Some((task, predicted_without)));
         }
         Ok(None)
+    }
+
+    /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order`.
+    fn trial_law(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        gradient: &JointVector<N>,
+    ) -> Result<JointVector<N>, ControllerError> {
+        let solution = solve_stack(
+            law.stack_parameters(),
+            &mut self.trial_workspace,
+            tasks,
+            &self.trial_order,
+        )
+        .map_err(LawError::from)?;
+        let mut trial = *solution.velocity();
+        trial.gemv(-law.avoidance_gain(), solution.projector(), gradient, 1.0);
+        Ok(trial)
     }
 
     /// D5: the stack velocity is small and the last transition has died out.
@@ -545,41 +912,121 @@ impl<const N: usize> StackController<N> {
                 >= self.parameters.settle_transitions / law.transition_gain()
     }
 
-    /// D7: the first removed task whose re-insertion keeps the prediction `h(q + T_pred u) ≤ h_max`, where `u` is the
-    /// law of the stack with the task put back.
-    fn reinsertable(
+    /// D7, D13, D5: once settled, put a removed task back (with hysteresis and dwell), fall back when one cannot come
+    /// back, or push the next task.
+    #[allow(clippy::too_many_arguments)]
+    fn settle_and_add(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
-        q: &JointVector<N>,
-        gradient: &JointVector<N>,
-    ) -> Result<Option<usize>, ControllerError> {
-        let Some(&task) = self.removed.first() else {
+        prediction: &Prediction<'_, N>,
+        iteration: usize,
+        time: f64,
+        result: &ControllerStep<N>,
+    ) -> Result<Option<EventKind>, ControllerError> {
+        if !self.settled(law, time, result.stack_velocity_norm) {
+            self.settled_since = None;
             return Ok(None);
+        }
+        if self.removed.is_empty() {
+            if self.next_push < self.task_count {
+                self.push_next(iteration, time);
+                return Ok(Some(EventKind::Push));
+            }
+            return Ok(None);
+        }
+        let robust = self.parameters.rule == DecisionRule::Robust;
+        let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));
+        let (threshold, horizon) = if robust {
+            (
+                self.parameters.reinsertion_ratio * h_max,
+                self.parameters.reinsertion_look_ahead * self.parameters.horizon(law.transition_gain()),
+            )
+        } else {
+            (h_max, self.parameters.prediction_horizon)
         };
-        let Some(cost) = cost else {
-            return Ok(Some(task));
-        };
-        self.trial_order.clear();
-        self.trial_order.extend_from_slice(&self.stacked);
-        let at = self.trial_order.partition_point(|&t| t < task);
-        self.trial_order.insert(at, task);
-        let solution = solve_stack(
-            law.stack_parameters(),
-            &mut self.trial_workspace,
-            tasks,
-            &self.trial_order,
-        )
-        .map_err(LawError::from)?;
-        let mut trial_law = *solution.velocity();
-        trial_law.gemv(-law.avoidance_gain(), solution.projector(), gradient, 1.0);
-        let predicted = q + trial_law * self.parameters.prediction_horizon;
-        let threshold = self.removal_threshold(cost);
-        Ok((cost.value(&predicted)? <= threshold).then_some(task))
+        let mut tested = false;
+        for rank in 0..self.removed.len() {
+            let task = self.removed[rank];
+            let removed_for = time - self.removed_at[task];
+            if robust && !self.fallback {
+                let doublings = self.removal_count[task].saturating_sub(1).min(30);
+                let dwell = self.parameters.reinsertion_dwell * f64::from(1u32 << doublings);
+                if removed_for < dwell {
+                    continue;
+                }
+            }
+            let predicted_cost = match cost {
+                Some(cost) if !self.fallback => {
+                    self.trial_order.clear();
+                    self.trial_order.extend_from_slice(&self.stacked);
+                    let at = self.trial_order.partition_point(|&t| t < task);
+                    self.trial_order.insert(at, task);
+                    let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                    cost.value(&back)?
+                }
+                _ => 0.0,
+            };
+            tested = true;
+            self.last_reinsertion_test = Some((task, predicted_cost, threshold));
+            if predicted_cost <= threshold || self.fallback {
+                let kind = if self.fallback {
+                    EventKind::Fallback
+                } else {
+                    EventKind::Reinsert
+                };
+                self.reinsert(task, kind, iteration, time, predicted_cost, threshold);
+                return Ok(Some(kind));
+            }
+        }
+        if !tested {
+            return Ok(None);
+        }
+        let waiting_since = *self.settled_since.get_or_insert(time);
+        if robust && time - waiting_since >= self.parameters.stall_timeout {
+            // D13: the first removed task comes back without the test; from now on no task is removed.
+            self.fallback = true;
+            let task = self.removed[0];
+            let (predicted_cost, threshold) = match self.last_reinsertion_test {
+                Some((tested, predicted, threshold)) if tested == task => (predicted, threshold),
+                _ => (f64::NAN, threshold),
+            };
+            self.reinsert(task, EventKind::Fallback, iteration, time, predicted_cost, threshold);
+            return Ok(Some(EventKind::Fallback));
+        }
+        Ok(None)
     }
 
-    /// Computes [`TaskCriteria`] for every stacked task (MATH §6.3) into `self.criteria`.
+    fn reinsert(
+        &mut self,
+        task: usize,
+        kind: EventKind,
+        iteration: usize,
+        time: f64,
+        predicted_cost: f64,
+        threshold: f64,
+    ) {
+        self.removed.retain(|&t| t != task);
+        self.insert_by_priority(task);
+        let removed_for = time - self.removed_at[task];
+        self.record(StackEvent {
+            iteration,
+            time,
+            kind,
+            task,
+            law_jump: 0.0,
+            removal: None,
+            reinsertion: Some(ReinsertionReport {
+                predicted_cost,
+                threshold,
+                removed_for,
+            }),
+        });
+    }
+
+    /// Computes [`TaskCriteria`] for every stacked task (MATH §6.3) into `self.criteria`, with the danger direction
+    /// `gradient`.
     ///
     /// # Errors
     /// A failed decomposition of a task Jacobian (the removal must not be chosen from an incomplete set).
@@ -636,17 +1083,14 @@ impl<const N: usize> StackController<N> {
         }
         Ok(())
     }
+}
 
-    /// The stacked task with the best score; the lowest-priority one on ties (or when no criteria exist).
-    fn choose_removal(&self) -> usize {
-        let criterion = self.parameters.criterion;
-        // `max_by` keeps the last of equal maxima: the lowest priority.
-        self.criteria
-            .iter()
-            .max_by(|a, b| a.score(criterion).total_cmp(&b.score(criterion)))
-            .map(|c| c.task)
-            .or_else(|| self.stacked.last().copied())
-            .unwrap_or(0)
+/// The guard's value at `q`, `+∞` when the guard cannot even be evaluated there because a target point would be behind
+/// the camera (the worst visibility there is).
+fn guard_value<const N: usize>(guard: &dyn Cost<N>, q: &JointVector<N>) -> Result<f64, CostError> {
+    match guard.value(q) {
+        Err(CostError::PointBehindCamera { .. }) => Ok(f64::INFINITY),
+        other => other,
     }
 }
 

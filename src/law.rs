@@ -251,6 +251,23 @@ impl<const N: usize> ControlWorkspace<N> {
         self.transition = Transition::default();
         self.output.velocity.copy_from(velocity);
     }
+
+    /// Replaces the last velocity returned by the one the robot actually received (after a saturation, say): the next
+    /// stack change blends from it (`q̇(τ⁻)`), so continuity holds for what was sent. The transition under way is kept.
+    pub fn set_sent_velocity(&mut self, velocity: &JointVector<N>) {
+        self.output.velocity.copy_from(velocity);
+    }
+
+    /// The memory of the law: the transition state and the last velocity returned.
+    pub fn memory(&self) -> (Transition<N>, JointVector<N>) {
+        (self.transition, self.output.velocity)
+    }
+
+    /// Restores a memory taken by [`Self::memory`] (a step whose velocity was not sent leaves no trace).
+    pub fn restore(&mut self, memory: (Transition<N>, JointVector<N>)) {
+        self.transition = memory.0;
+        self.output.velocity = memory.1;
+    }
 }
 
 /// One step of the control law D1/\[M18\] at time `time` (s) for the configuration `q`, the evaluated `tasks` stacked in

@@ -4,11 +4,18 @@
 //! The summary schema (extra fields allowed):
 //!
 //! ```text
-//! {"scenario": str, "runs": [{"name": str, "outcome": "converged"|"joint_limit"|"feature_lost"|"max_iterations",
-//!   "iterations": int, "joint": int|null, "stacked_at_end": [task names],
-//!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert", "task": str}],
-//!   "max_velocity_jump": float, "final_error_norm": float, "min_normalized_margin": float}]}
+//! {"scenario": str, "runs": [{"name": str,
+//!   "outcome": "converged"|"joint_limit"|"feature_lost"|"max_iterations"|"stalled",
+//!   "reason": str|null, "iterations": int, "joint": int|null, "stacked_at_end": [task names],
+//!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback", "task": str,
+//!               "law_jump": float, "jump": float, "max_step_after": float}],
+//!   "max_velocity_jump": float, "max_velocity_step": float, "max_acceleration": float,
+//!   "final_error_norm": float, "min_normalized_margin": float}]}
 //! ```
+//!
+//! Continuity (D14): `law_jump` is the jump `‖u(τ) − q̇(τ⁻)‖` the law alone would make at a change, `jump` the step of
+//! the velocity actually sent there (zero up to rounding), `max_step_after` its largest step until the next change;
+//! `max_velocity_step` is `max_k ‖q̇_k − q̇_{k−1}‖` over the run and `max_acceleration` the same divided by `Δt`.
 //!
 //! With obstacles, `outcome` may also be `"collision"`, each run has `"min_obstacle_distance"` (m, negative when
 //! penetrating) and a collided run `"collision": {"link": str, "obstacle": str}`; a removal event names the cost term
@@ -93,27 +100,31 @@ impl std::fmt::Display for Summary {
         writeln!(f, "scenario {}", self.scenario)?;
         writeln!(
             f,
-            "{:<17} {:<15} {:>6} {:>5} {:>10} {:>10} {:>7}  events",
-            "run", "outcome", "iter", "joint", "max jump", "final ‖e‖", "margin"
+            "{:<17} {:<15} {:>6} {:>5} {:>10} {:>10} {:>10} {:>7}  events",
+            "run", "outcome", "iter", "joint", "max jump", "max step", "final ‖e‖", "margin"
         )?;
         for run in &self.runs {
             let events: Vec<String> = run
                 .events
                 .iter()
-                .map(|e| format!("{:?} {}@{}", e.kind, e.task, e.iteration).to_lowercase())
+                .map(|e| format!("{} {}@{}", e.kind.name(), e.task, e.iteration))
                 .collect();
             writeln!(
                 f,
-                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.2e} {:>7.3}  {}",
+                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.1e} {:>10.2e} {:>7.3}  {}",
                 run.name,
                 run.outcome,
                 run.iterations,
                 run.joint.map_or("-".into(), |j| j.to_string()),
                 run.max_velocity_jump,
+                run.max_velocity_step,
                 run.final_error_norm,
                 run.min_normalized_margin,
                 events.join(", ")
             )?;
+            if let Some(reason) = &run.reason {
+                writeln!(f, "{:<17} {reason}", "")?;
+            }
             if let Some(distance) = run.min_obstacle_distance {
                 writeln!(f, "{:<17} min obstacle distance {distance:.4} m", "")?;
             }
@@ -136,10 +147,16 @@ pub struct Summary {
 pub struct EventSummary {
     /// The iteration of the change.
     pub iteration: usize,
-    /// `push`, `remove` or `reinsert`.
+    /// `push`, `remove`, `reinsert` or `fallback`.
     pub kind: EventKind,
     /// The task's name.
     pub task: String,
+    /// `‖u(τ) − q̇(τ⁻)‖`, the jump the law alone would make (D14).
+    pub law_jump: f64,
+    /// The step of the velocity sent at the change (D14).
+    pub jump: f64,
+    /// The largest step of the velocity sent after the change, up to the next one (D14).
+    pub max_step_after: f64,
     /// For a removal, the cost term that dominated the predicted cost (extra field).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cost: Option<String>,
@@ -159,8 +176,10 @@ pub struct CollisionSummary {
 pub struct RunSummary {
     /// The run's name (`classical`, `stack`, `stack_gradient`, `stack_controller`, or any).
     pub name: String,
-    /// `converged`, `joint_limit`, `feature_lost` or `max_iterations`.
+    /// `converged`, `joint_limit`, `feature_lost`, `max_iterations`, `stalled` or `collision`.
     pub outcome: &'static str,
+    /// Why a `stalled` or `max_iterations` run did not converge.
+    pub reason: Option<String>,
     /// The number of iterations performed.
     pub iterations: usize,
     /// The joint that reached its limit (0-based), or `null`.
@@ -171,6 +190,10 @@ pub struct RunSummary {
     pub events: Vec<EventSummary>,
     /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the events.
     pub max_velocity_jump: f64,
+    /// `max_k ‖q̇_k − q̇_{k−1}‖` over the run (D14).
+    pub max_velocity_step: f64,
+    /// `max_velocity_step / Δt` (per s²).
+    pub max_acceleration: f64,
     /// `‖e‖` over all tasks at the end.
     pub final_error_norm: f64,
     /// The smallest distance to a joint limit over time and joints, as a fraction of the range.
@@ -192,7 +215,11 @@ impl RunSummary {
         let (joint, lost_point) = match &run.outcome {
             Outcome::JointLimit { joint, .. } => (Some(*joint), None),
             Outcome::FeatureLost { point } => (None, Some(*point)),
-            Outcome::Converged | Outcome::MaxIterations | Outcome::Collision { .. } => (None, None),
+            _ => (None, None),
+        };
+        let reason = match &run.outcome {
+            Outcome::Stalled { reason, .. } | Outcome::MaxIterations { reason } => Some(reason.clone()),
+            _ => None,
         };
         let collision = match &run.outcome {
             Outcome::Collision { link, obstacle, .. } => Some(CollisionSummary {
@@ -204,20 +231,27 @@ impl RunSummary {
         Self {
             name: name.into(),
             outcome: run.outcome.name(),
+            reason,
             iterations: run.iterations(),
             joint,
             stacked_at_end: run.stacked_at_end().into_iter().map(String::from).collect(),
             events: run
                 .events
                 .iter()
-                .map(|e| EventSummary {
+                .zip(run.event_continuity())
+                .map(|(e, continuity)| EventSummary {
                     iteration: e.iteration,
                     kind: e.kind,
                     task: run.task_names[e.task].clone(),
+                    law_jump: continuity.law_jump,
+                    jump: continuity.jump,
+                    max_step_after: continuity.max_step_after,
                     cost: e.removal.as_ref().map(|r| r.cost.clone()),
                 })
                 .collect(),
             max_velocity_jump: run.max_velocity_jump(),
+            max_velocity_step: run.max_velocity_step(),
+            max_acceleration: run.max_velocity_step() / run.period,
             final_error_norm: run.final_error_norm(),
             min_normalized_margin: run.min_normalized_margin(),
             lost_point,
@@ -258,14 +292,9 @@ mod figures {
             .iter()
             .filter(|e| e.iteration > 0)
             .map(|e| {
-                let verb = match e.kind {
-                    EventKind::Push => "push",
-                    EventKind::Remove => "remove",
-                    EventKind::Reinsert => "reinsert",
-                };
                 Marker::new(
                     e.iteration as f64,
-                    format!("{verb} {}", run.task_names[e.task]),
+                    format!("{} {}", e.kind.name(), run.task_names[e.task]),
                 )
             })
             .collect()

@@ -610,6 +610,7 @@ impl Scenario {
             law: &law,
             controller,
             avoid_joint_limits: avoid,
+            guard_visibility: kind == RunKind::StackController,
         };
         Ok(simulate(
             &experiment.scene,

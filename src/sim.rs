@@ -25,7 +25,8 @@
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
-    ControllerError, ControllerParameters, EventKind, StackController, StackEvent, TaskCriteria,
+    ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController, StackEvent,
+    TaskCriteria,
 };
 use crate::feature::{FeatureError, Observation};
 use crate::law::{ControlLaw, LawError};
@@ -267,6 +268,9 @@ pub struct SimulationParameters {
     pub convergence_error: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
+    /// The full method's removal guard (D6 (d)): a removal must not bring the target points predicted within this
+    /// many pixels of the image border closer to it than keeping the task would (px; default 20).
+    pub removal_guard_margin_px: f64,
 }
 
 impl Default for SimulationParameters {
@@ -276,6 +280,7 @@ impl Default for SimulationParameters {
             max_iterations: 10_000,
             convergence_error: 1e-4,
             image_margin: 0.0,
+            removal_guard_margin_px: 20.0,
         }
     }
 }
@@ -302,6 +307,10 @@ impl SimulationParameters {
         if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
             return invalid("image_margin", self.image_margin, "finite and ≥ 0");
         }
+        let guard = self.removal_guard_margin_px;
+        if !(guard.is_finite() && guard >= 0.0) {
+            return invalid("removal_guard_margin_px", guard, "finite and ≥ 0");
+        }
         Ok(())
     }
 }
@@ -324,8 +333,18 @@ pub enum Outcome {
         /// The point (0-based).
         point: usize,
     },
-    /// The iteration budget ran out.
-    MaxIterations,
+    /// The iteration budget ran out with every task stacked: the errors were still above the threshold.
+    MaxIterations {
+        /// What the run was doing (the task errors at the end).
+        reason: String,
+    },
+    /// The iteration budget ran out while a task was removed or waiting to be pushed (D13): the run names it and why.
+    Stalled {
+        /// The task that waited (index into the task list).
+        task: usize,
+        /// Why it could not come in.
+        reason: String,
+    },
     /// A link touched or penetrated an obstacle (signed distance `≤ 0`).
     Collision {
         /// The link.
@@ -340,13 +359,15 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`, `collision`.
+    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`, `stalled`,
+    /// `collision`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Converged => "converged",
             Self::JointLimit { .. } => "joint_limit",
             Self::FeatureLost { .. } => "feature_lost",
-            Self::MaxIterations => "max_iterations",
+            Self::MaxIterations { .. } => "max_iterations",
+            Self::Stalled { .. } => "stalled",
             Self::Collision { .. } => "collision",
         }
     }
@@ -363,6 +384,8 @@ pub struct Record<const N: usize> {
     pub q: JointVector<N>,
     /// The velocity sent (zero at the last record of a run that ended before stepping).
     pub velocity: JointVector<N>,
+    /// Whether a velocity was sent at this iteration (`false` for the last record of a run that ended before stepping).
+    pub sent: bool,
     /// `‖e_i‖` for every task of the list (stacked or not).
     pub task_errors: Vec<f64>,
     /// The tasks stacked at this iteration.
@@ -380,11 +403,31 @@ pub struct Record<const N: usize> {
     pub obstacle_distance: Option<f64>,
 }
 
+/// Continuity of the velocity sent at one stack change (D14), from [`Run::event_continuity`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct EventContinuity {
+    /// The iteration of the change.
+    pub iteration: usize,
+    /// What changed.
+    pub kind: EventKind,
+    /// The task.
+    pub task: usize,
+    /// `‖u(τ) − q̇(τ⁻)‖`: the jump the law alone would have made.
+    pub law_jump: f64,
+    /// `‖q̇_k − q̇_{k−1}‖` at the change (zero up to rounding with the transition term).
+    pub jump: f64,
+    /// The largest `‖q̇_j − q̇_{j−1}‖` after the change, up to the next one: the transition spreads the law's jump over
+    /// a ramp whose first step is about `(1 − e^{−μΔt})` times it.
+    pub max_step_after: f64,
+}
+
 /// A finished run: its outcome, the run log and the event log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Run<const N: usize> {
     /// How it ended.
     pub outcome: Outcome,
+    /// The control period `Δt` (s).
+    pub period: f64,
     /// The names of the tasks, by index.
     pub task_names: Vec<String>,
     /// One record per iteration.
@@ -401,22 +444,67 @@ impl<const N: usize> Run<N> {
         self.records.len()
     }
 
+    /// The velocity sent at each iteration that sent one, from rest: `q̇_{−1} = 0`, then `q̇_0, q̇_1, …`.
+    fn sent_velocities(&self) -> impl Iterator<Item = JointVector<N>> + '_ {
+        std::iter::once(JointVector::zeros()).chain(
+            self.records
+                .iter()
+                .filter(|r| r.sent)
+                .map(|r| r.velocity),
+        )
+    }
+
+    /// `‖q̇_k − q̇_{k−1}‖` for every iteration `k` that sent a velocity (D14; `q̇_{−1} = 0`: the run starts at rest).
+    pub fn velocity_steps(&self) -> Vec<f64> {
+        self.sent_velocities()
+            .zip(self.sent_velocities().skip(1))
+            .map(|(before, after)| (after - before).norm())
+            .collect()
+    }
+
+    /// The largest step-to-step change of the velocity sent over the run, `max_k ‖q̇_k − q̇_{k−1}‖` (D14); divide by
+    /// [`Run::period`] for the largest acceleration.
+    pub fn max_velocity_step(&self) -> f64 {
+        self.velocity_steps().into_iter().fold(0.0, f64::max)
+    }
+
     /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the stack changes: the velocity sent at the iteration of a change against
-    /// the one sent at the iteration before (zero before the first iteration: the run starts at rest).
+    /// the one sent at the iteration before (zero before the first iteration: the run starts at rest). D1 makes it
+    /// zero up to rounding; [`Run::event_continuity`] says what happens after.
     pub fn max_velocity_jump(&self) -> f64 {
-        let velocity_before = |k: usize| {
-            k.checked_sub(1)
-                .and_then(|i| self.records.get(i))
-                .map_or(JointVector::zeros(), |r| r.velocity)
-        };
+        self.event_continuity()
+            .iter()
+            .map(|c| c.jump)
+            .fold(0.0, f64::max)
+    }
+
+    /// Continuity at and after every stack change (D14): the jump at the change, the largest velocity step in the
+    /// window from the change to the next one, and the jump the law alone would have made.
+    pub fn event_continuity(&self) -> Vec<EventContinuity> {
+        let steps = self.velocity_steps();
         self.events
             .iter()
-            .filter_map(|e| {
-                self.records
-                    .get(e.iteration)
-                    .map(|r| (r.velocity - velocity_before(e.iteration)).norm())
+            .enumerate()
+            .filter(|(_, e)| e.iteration < steps.len())
+            .map(|(i, e)| {
+                let end = self
+                    .events
+                    .get(i + 1)
+                    .map_or(steps.len(), |next| next.iteration)
+                    .clamp(e.iteration + 1, steps.len());
+                EventContinuity {
+                    iteration: e.iteration,
+                    kind: e.kind,
+                    task: e.task,
+                    law_jump: e.law_jump,
+                    jump: steps[e.iteration],
+                    max_step_after: steps[e.iteration + 1..end]
+                        .iter()
+                        .copied()
+                        .fold(0.0, f64::max),
+                }
             })
-            .fold(0.0, f64::max)
+            .collect()
     }
 
     /// `‖[e_1; …; e_n]‖` at the last iteration.
@@ -467,6 +555,47 @@ impl<const N: usize> Run<N> {
     }
 }
 
+/// How a run that used its whole budget ended: stalled on a task that could not come in (D13), or still converging.
+fn budget_outcome<const N: usize>(
+    controller: &StackController<N>,
+    task_names: &[String],
+    last: Option<&Record<N>>,
+) -> Outcome {
+    let errors = last.map(|r| r.task_errors.as_slice()).unwrap_or_default();
+    let error_list = task_names
+        .iter()
+        .zip(errors)
+        .map(|(name, e)| format!("{name} {e:.1e}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    match controller.status() {
+        ControllerStatus::Reinserting {
+            task,
+            predicted_cost,
+            threshold,
+        } => Outcome::Stalled {
+            task,
+            reason: format!(
+                "{} was removed and its re-insertion was refused to the end: the cost predicted with it back is                  {predicted_cost:.2e} > {threshold:.2e} (task errors: {error_list})",
+                task_names[task]
+            ),
+        },
+        ControllerStatus::Pushing {
+            next,
+            stack_velocity_norm,
+        } => Outcome::Stalled {
+            task: next,
+            reason: format!(
+                "{} was never pushed: the stack did not settle (‖q̇_n‖ = {stack_velocity_norm:.2e} at the end; task                  errors: {error_list})",
+                task_names[next]
+            ),
+        },
+        ControllerStatus::Complete => Outcome::MaxIterations {
+            reason: format!("every task stacked; task errors at the end: {error_list}"),
+        },
+    }
+}
+
 /// The point of a [`CostError::PointBehindCamera`] inside a controller error.
 fn point_behind_camera(error: &ControllerError) -> Option<usize> {
     match error {
@@ -502,6 +631,9 @@ pub struct Drive<'a> {
     /// the scene has them) is given to the law and the controller (projected-gradient avoidance and prediction);
     /// without it, `κ` has no effect and no task is ever removed.
     pub avoid_joint_limits: bool,
+    /// Whether removals are guarded by the visibility of the target ([`SimulationParameters::removal_guard_margin_px`],
+    /// D6 (d)): the full method's default.
+    pub guard_visibility: bool,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
@@ -533,18 +665,31 @@ pub fn simulate<const N: usize>(
     let cost: Option<&dyn Cost<N>> = drive
         .avoid_joint_limits
         .then_some(&avoidance as &dyn Cost<N>);
+    let guard_cost = if drive.guard_visibility && drive.controller.allow_removal {
+        let points = scene.target.points().map(|p| scene.base_from_object * p);
+        Some(VisibilityCost::new(
+            scene.chain.clone(),
+            scene.camera,
+            &scene.intrinsics,
+            &points,
+            parameters.removal_guard_margin_px,
+        )?)
+    } else {
+        None
+    };
+    let guard = guard_cost.as_ref().map(|g| g as &dyn Cost<N>);
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
     let mut closest = closest_obstacle(scene, &q)?;
     let mut records = Vec::with_capacity(parameters.max_iterations.min(100_000));
-    let mut outcome = Outcome::MaxIterations;
+    let mut outcome = None;
     for iteration in 0..parameters.max_iterations {
         let time = iteration as f64 * parameters.period;
         let view = match scene.observe(&mut workspace, &q) {
             Ok(view) => view,
             Err(SimError::Camera(CameraError::PointBehindCamera { index, .. })) => {
-                outcome = Outcome::FeatureLost { point: index };
+                outcome = Some(Outcome::FeatureLost { point: index });
                 break;
             }
             Err(error) => return Err(error),
@@ -554,7 +699,7 @@ pub fn simulate<const N: usize>(
                 .intrinsics
                 .in_field_of_view(p, parameters.image_margin)
         }) {
-            outcome = Outcome::FeatureLost { point };
+            outcome = Some(Outcome::FeatureLost { point });
             break;
         }
         let observation = view.observation()?;
@@ -571,6 +716,7 @@ pub fn simulate<const N: usize>(
             time,
             q,
             velocity: JointVector::zeros(),
+            sent: false,
             task_errors,
             stacked: controller.stacked().to_vec(),
             cost: scene.limits.value(&q)?,
@@ -586,23 +732,24 @@ pub fn simulate<const N: usize>(
                 .all(|&e| e < parameters.convergence_error)
         {
             records.push(record);
-            outcome = Outcome::Converged;
+            outcome = Some(Outcome::Converged);
             break;
         }
-        let step = match controller.step(drive.law, &values, cost, &q, iteration, time) {
+        let step = match controller.step_guarded(drive.law, &values, cost, guard, &q, iteration, time) {
             Ok(step) => step,
             // The visibility cost is undefined once the (predicted) motion takes a point behind the camera: the
             // feature is lost, as when the camera itself gets there.
             Err(error) => match point_behind_camera(&error) {
                 Some(point) => {
                     records.push(record);
-                    outcome = Outcome::FeatureLost { point };
+                    outcome = Some(Outcome::FeatureLost { point });
                     break;
                 }
                 None => return Err(error.into()),
             },
         };
         record.velocity = step.velocity;
+        record.sent = true;
         // The stack that produced the velocity sent (a change made at this iteration included).
         record.stacked.clear();
         record.stacked.extend_from_slice(controller.stacked());
@@ -615,25 +762,31 @@ pub fn simulate<const N: usize>(
         let stacked = record.stacked.clone();
         records.push(record);
         if let Some(joint) = hit {
-            outcome = Outcome::JointLimit { joint, stacked };
+            outcome = Some(Outcome::JointLimit { joint, stacked });
             break;
         }
         if let Some((link, obstacle, distance)) = contact {
-            outcome = Outcome::Collision {
+            outcome = Some(Outcome::Collision {
                 link,
                 obstacle,
                 distance,
                 stacked,
-            };
+            });
             break;
         }
     }
+    let task_names: Vec<String> = tasks
+        .iter()
+        .map(|t| Task::<N, VisualContext<'_, N>>::name(t).to_owned())
+        .collect();
+    let outcome = match outcome {
+        Some(outcome) => outcome,
+        None => budget_outcome(&controller, &task_names, records.last()),
+    };
     Ok(Run {
         outcome,
-        task_names: tasks
-            .iter()
-            .map(|t| Task::<N, VisualContext<'_, N>>::name(t).to_owned())
-            .collect(),
+        period: parameters.period,
+        task_names,
         records,
         events: controller.events().to_vec(),
         limits: scene.limits.clone(),
