@@ -157,7 +157,8 @@ pub struct ControllerParameters {
     /// `r_back` in `(0, 1]`: a removed task comes back only if the prediction with it keeps `h(q̂) ≤ r_back · h_max`
     /// (D7 hysteresis; default 0.5).
     pub reinsertion_ratio: f64,
-    /// `n_back ≥ 1`: the re-insertion test predicts over `n_back · T` (D7; default 2).
+    /// `n_back`: the re-insertion test predicts over `n_back / λ_i`, in time constants of the task put back (D7;
+    /// default 1: `q + u/λ_i` is where the linearised law with the task back would take the robot).
     pub reinsertion_look_ahead: f64,
     /// `n_change`: no removal within `n_change / μ` of the last change (D6, one change per transition; default 1).
     pub change_transitions: f64,
@@ -185,7 +186,7 @@ impl Default for ControllerParameters {
             look_ahead_transitions: 2.0,
             removal_threshold: None,
             reinsertion_ratio: 0.5,
-            reinsertion_look_ahead: 2.0,
+            reinsertion_look_ahead: 1.0,
             change_transitions: 1.0,
             reinsertion_dwell: 1.0,
             max_removals: 4,
@@ -221,26 +222,76 @@ impl ControllerParameters {
         };
         let in_range = |v: f64, low: f64, high: f64| v.is_finite() && low <= v && v <= high;
         let v = self.settle_velocity;
-        check("settle_velocity", v, v.is_finite() && v > 0.0 && v < 1e6, "finite, > 0 and < 1e6")?;
+        check(
+            "settle_velocity",
+            v,
+            v.is_finite() && v > 0.0 && v < 1e6,
+            "finite, > 0 and < 1e6",
+        )?;
         let v = self.settle_transitions;
-        check("settle_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        check(
+            "settle_transitions",
+            v,
+            in_range(v, 0.0, MAX_TRANSITIONS),
+            "in [0, 1e4]",
+        )?;
         let v = self.prediction_horizon;
-        check("prediction_horizon", v, in_range(v, 0.0, MAX_SECONDS), "in [0, 86400] s")?;
+        check(
+            "prediction_horizon",
+            v,
+            in_range(v, 0.0, MAX_SECONDS),
+            "in [0, 86400] s",
+        )?;
         let v = self.look_ahead_transitions;
-        check("look_ahead_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        check(
+            "look_ahead_transitions",
+            v,
+            in_range(v, 0.0, MAX_TRANSITIONS),
+            "in [0, 1e4]",
+        )?;
         if let Some(h_max) = self.removal_threshold {
-            check("removal_threshold", h_max, h_max.is_finite() && h_max > 0.0, "finite and > 0")?;
+            check(
+                "removal_threshold",
+                h_max,
+                h_max.is_finite() && h_max > 0.0,
+                "finite and > 0",
+            )?;
         }
         let v = self.reinsertion_ratio;
-        check("reinsertion_ratio", v, v.is_finite() && v > 0.0 && v <= 1.0, "in (0, 1]")?;
+        check(
+            "reinsertion_ratio",
+            v,
+            v.is_finite() && v > 0.0 && v <= 1.0,
+            "in (0, 1]",
+        )?;
         let v = self.reinsertion_look_ahead;
-        check("reinsertion_look_ahead", v, in_range(v, 1.0, MAX_TRANSITIONS), "in [1, 1e4]")?;
+        check(
+            "reinsertion_look_ahead",
+            v,
+            v > 0.0 && in_range(v, 0.0, MAX_TRANSITIONS),
+            "in (0, 1e4]",
+        )?;
         let v = self.change_transitions;
-        check("change_transitions", v, in_range(v, 0.0, MAX_TRANSITIONS), "in [0, 1e4]")?;
+        check(
+            "change_transitions",
+            v,
+            in_range(v, 0.0, MAX_TRANSITIONS),
+            "in [0, 1e4]",
+        )?;
         let v = self.reinsertion_dwell;
-        check("reinsertion_dwell", v, in_range(v, 0.0, MAX_SECONDS), "in [0, 86400] s")?;
+        check(
+            "reinsertion_dwell",
+            v,
+            in_range(v, 0.0, MAX_SECONDS),
+            "in [0, 86400] s",
+        )?;
         let v = self.stall_timeout;
-        check("stall_timeout", v, v.is_finite() && v > 0.0 && v <= MAX_SECONDS, "in (0, 86400] s")?;
+        check(
+            "stall_timeout",
+            v,
+            v.is_finite() && v > 0.0 && v <= MAX_SECONDS,
+            "in (0, 86400] s",
+        )?;
         let v = f64::from(self.max_removals);
         check("max_removals", v, self.max_removals >= 1, "≥ 1")?;
         Ok(())
@@ -414,6 +465,8 @@ pub struct StackController<const N: usize> {
     next_push: usize,
     /// Removed tasks, in priority order.
     removed: Vec<usize>,
+    /// Per task: never removed (D6 (e)).
+    protected: Vec<bool>,
     /// Per task: how many times it was removed, and when last.
     removal_count: Vec<u32>,
     removed_at: Vec<f64>,
@@ -425,6 +478,7 @@ pub struct StackController<const N: usize> {
     fallback: bool,
     change_pending: bool,
     last_change_time: f64,
+    last_removal_time: f64,
     last_stack_velocity_norm: f64,
     law_workspace: ControlWorkspace<N>,
     trial_workspace: StackWorkspace<N>,
@@ -480,6 +534,7 @@ impl<const N: usize> StackController<N> {
             stacked: Vec::with_capacity(count),
             next_push: 0,
             removed: Vec::with_capacity(count),
+            protected: vec![false; count],
             removal_count: vec![0; count],
             removed_at: vec![0.0; count],
             settled_since: None,
@@ -487,6 +542,7 @@ impl<const N: usize> StackController<N> {
             fallback: false,
             change_pending: false,
             last_change_time: 0.0,
+            last_removal_time: f64::NEG_INFINITY,
             last_stack_velocity_norm: f64::INFINITY,
             law_workspace: ControlWorkspace::new(tasks),
             trial_workspace: StackWorkspace::new(tasks),
@@ -497,6 +553,26 @@ impl<const N: usize> StackController<N> {
             svds: vec![ColumnSvd::default(); count],
             events: Vec::with_capacity(4 * count + 8),
         })
+    }
+
+    /// The controller with `tasks` never removed (D6 (e)): in visual servoing, the task that keeps the target in the
+    /// image (the centroid), since a removal that lets the target leave the image cannot be undone.
+    ///
+    /// # Errors
+    /// [`ControllerError::InvalidParameter`] for an index beyond the task list.
+    pub fn with_protected_tasks(mut self, tasks: &[usize]) -> Result<Self, ControllerError> {
+        for &task in tasks {
+            let flag = self
+                .protected
+                .get_mut(task)
+                .ok_or(ControllerError::InvalidParameter {
+                    name: "protected task",
+                    value: task as f64,
+                    expected: "an index into the task list",
+                })?;
+            *flag = true;
+        }
+        Ok(self)
     }
 
     /// The parameters.
@@ -645,7 +721,17 @@ impl<const N: usize> StackController<N> {
             self.note_law_jump(iteration, &output, &velocity_sent_before);
         }
         let mut result = self.summarize(&output);
-        let event = match self.decide(law, tasks, cost, guard, q, &output, iteration, time, &mut result) {
+        let event = match self.decide(
+            law,
+            tasks,
+            cost,
+            guard,
+            q,
+            &output,
+            iteration,
+            time,
+            &mut result,
+        ) {
             Ok(event) => event,
             Err(error) => {
                 self.law_workspace.restore(memory);
@@ -770,21 +856,34 @@ impl<const N: usize> StackController<N> {
         let horizon = self.parameters.horizon(law.transition_gain());
         let predicted = prediction.at(output.law(), horizon);
         let mut predicted_gradient = JointVector::zeros();
-        result.predicted_cost = cost.value_and_gradient(&predicted, &mut predicted_gradient)?;
-        // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
-        let danger = if output.gradient().norm() > 0.0 || self.parameters.rule == DecisionRule::Paper
-        {
-            *output.gradient()
-        } else {
-            predicted_gradient
+        result.predicted_cost = match cost.value_and_gradient(&predicted, &mut predicted_gradient) {
+            Err(CostError::PointBehindCamera { .. }) => f64::INFINITY,
+            other => other?,
         };
+        // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
+        let danger =
+            if output.gradient().norm() > 0.0 || self.parameters.rule == DecisionRule::Paper {
+                *output.gradient()
+            } else {
+                predicted_gradient
+            };
         if danger.norm() > 0.0 {
             self.compute_criteria(law, tasks, &danger)?;
         }
         let threshold = self.removal_threshold(cost);
-        let danger_predicted = result.predicted_cost > threshold && result.predicted_cost > result.cost;
+        let danger_predicted =
+            result.predicted_cost > threshold && result.predicted_cost > result.cost;
         if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time) {
-            let choice = self.choose_removal(law, tasks, cost, guard, &prediction, horizon, result.predicted_cost, &predicted)?;
+            let choice = self.choose_removal(
+                law,
+                tasks,
+                cost,
+                guard,
+                &prediction,
+                horizon,
+                result.predicted_cost,
+                &predicted,
+            )?;
             if let Some((task, predicted_cost_without)) = choice {
                 let dominant = cost.dominant_term(&predicted)?.to_owned();
                 self.stacked.retain(|&t| t != task);
@@ -792,6 +891,7 @@ impl<const N: usize> StackController<N> {
                 self.removed.insert(at, task);
                 self.removal_count[task] += 1;
                 self.removed_at[task] = time;
+                self.last_removal_time = time;
                 self.last_reinsertion_test = None;
                 let report = RemovalReport {
                     predicted_cost: result.predicted_cost,
@@ -817,13 +917,13 @@ impl<const N: usize> StackController<N> {
         self.settle_and_add(law, tasks, Some(cost), &prediction, iteration, time, result)
     }
 
-    /// Whether a removal may be made now: removals allowed, no fallback, and (robust rule) the last change at least
-    /// `n_change/μ` old.
+    /// Whether a removal may be made now: removals allowed, no fallback, and (robust rule) the last removal at least
+    /// `n_change/μ` old. A removal right after a push is allowed: the push is what the removal answers.
     fn may_remove(&self, law: &ControlLaw, time: f64) -> bool {
         let parameters = &self.parameters;
         let spaced = match parameters.rule {
             DecisionRule::Robust => {
-                time - self.last_change_time
+                time - self.last_removal_time
                     >= parameters.change_transitions / law.transition_gain()
             }
             DecisionRule::Paper => true,
@@ -858,18 +958,22 @@ impl<const N: usize> StackController<N> {
             return Ok(None);
         }
         let guard_now = match guard {
-            Some(guard) if robust => guard_value(guard, predicted)?,
+            Some(guard) if robust => predicted_value(guard, predicted)?,
             _ => 0.0,
         };
         for rank in 0..self.ranking.len() {
             let task = self.ranking[rank].task;
-            if robust && self.removal_count[task] >= self.parameters.max_removals {
+            if robust
+                && (self.protected[task]
+                    || self.removal_count[task] >= self.parameters.max_removals)
+            {
                 continue;
             }
             self.trial_order.clear();
-            self.trial_order.extend(self.stacked.iter().copied().filter(|&t| t != task));
+            self.trial_order
+                .extend(self.stacked.iter().copied().filter(|&t| t != task));
             let without = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-            let predicted_without = cost.value(&without)?;
+            let predicted_without = predicted_value(cost, &without)?;
             if !robust {
                 return Ok(Some((task, predicted_without)));
             }
@@ -877,7 +981,7 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             if let Some(guard) = guard {
-                if guard_value(guard, &without)? > guard_now {
+                if predicted_value(guard, &without)? > guard_now {
                     continue;
                 }
             }
@@ -938,24 +1042,17 @@ impl<const N: usize> StackController<N> {
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));
-        let (threshold, horizon) = if robust {
-            (
-                self.parameters.reinsertion_ratio * h_max,
-                self.parameters.reinsertion_look_ahead * self.parameters.horizon(law.transition_gain()),
-            )
+        let threshold = if robust {
+            self.parameters.reinsertion_ratio * h_max
         } else {
-            (h_max, self.parameters.prediction_horizon)
+            h_max
         };
         let mut tested = false;
         for rank in 0..self.removed.len() {
             let task = self.removed[rank];
             let removed_for = time - self.removed_at[task];
-            if robust && !self.fallback {
-                let doublings = self.removal_count[task].saturating_sub(1).min(30);
-                let dwell = self.parameters.reinsertion_dwell * f64::from(1u32 << doublings);
-                if removed_for < dwell {
-                    continue;
-                }
+            if robust && !self.fallback && removed_for < self.dwell(task) {
+                continue;
             }
             let predicted_cost = match cost {
                 Some(cost) if !self.fallback => {
@@ -963,8 +1060,17 @@ impl<const N: usize> StackController<N> {
                     self.trial_order.extend_from_slice(&self.stacked);
                     let at = self.trial_order.partition_point(|&t| t < task);
                     self.trial_order.insert(at, task);
-                    let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-                    cost.value(&back)?
+                    // The look-ahead spans the task's own time constant 1/λ_i: for a task converging as e^{−λ_i t},
+                    // q + u/λ_i is where its linearised law would take the robot.
+                    let horizon = match (robust, tasks.get(task)) {
+                        (true, Some(value)) => {
+                            self.parameters.reinsertion_look_ahead / value.gain()
+                        }
+                        _ => self.parameters.prediction_horizon,
+                    };
+                    let back =
+                        prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                    predicted_value(cost, &back)?
                 }
                 _ => 0.0,
             };
@@ -983,6 +1089,53 @@ impl<const N: usize> StackController<N> {
         if !tested {
             return Ok(None);
         }
+        if robust && self.next_push < self.task_count {
+            // No removed task can come back here: make progress with the next task instead (the paper's e4 achieved
+            // while e3 is out). The removed ones are tested again once the stack has settled.
+            self.push_next(iteration, time);
+            return Ok(Some(EventKind::Push));
+        }
+        if let (true, false, Some(cost)) = (robust, self.fallback, cost) {
+            if let Some((back, out, predicted_cost)) =
+                self.find_swap(law, tasks, cost, prediction, threshold, time)?
+            {
+                // One transition: `back` returns at its priority and `out` leaves (the configuration has changed since
+                // `back` was removed, and now `out` is the task in the way).
+                self.reinsert(
+                    back,
+                    EventKind::Reinsert,
+                    iteration,
+                    time,
+                    predicted_cost,
+                    threshold,
+                );
+                self.stacked.retain(|&t| t != out);
+                let at = self.removed.partition_point(|&t| t < out);
+                self.removed.insert(at, out);
+                self.removal_count[out] += 1;
+                self.removed_at[out] = time;
+                self.last_removal_time = time;
+                self.record(StackEvent {
+                    iteration,
+                    time,
+                    kind: EventKind::Remove,
+                    task: out,
+                    law_jump: 0.0,
+                    removal: Some(RemovalReport {
+                        predicted_cost: result.predicted_cost,
+                        threshold: h_max,
+                        predicted_cost_without: predicted_cost,
+                        horizon: self.parameters.reinsertion_look_ahead
+                            / tasks.get(back).map_or(1.0, TaskValue::gain),
+                        joint: prediction.gradient.iamax(),
+                        cost: cost.dominant_term(prediction.q)?.to_owned(),
+                        criteria: self.criteria.clone(),
+                    }),
+                    reinsertion: None,
+                });
+                return Ok(Some(EventKind::Remove));
+            }
+        }
         let waiting_since = *self.settled_since.get_or_insert(time);
         if robust && time - waiting_since >= self.parameters.stall_timeout {
             // D13: the first removed task comes back without the test; from now on no task is removed.
@@ -992,10 +1145,64 @@ impl<const N: usize> StackController<N> {
                 Some((tested, predicted, threshold)) if tested == task => (predicted, threshold),
                 _ => (f64::NAN, threshold),
             };
-            self.reinsert(task, EventKind::Fallback, iteration, time, predicted_cost, threshold);
+            self.reinsert(
+                task,
+                EventKind::Fallback,
+                iteration,
+                time,
+                predicted_cost,
+                threshold,
+            );
             return Ok(Some(EventKind::Fallback));
         }
         Ok(None)
+    }
+
+    /// D7 swap: a removed task `back` (dwell over) and a stacked task `out` (removable) such that the stack with `back`
+    /// in and `out` out keeps the prediction over `n_back/λ_back` below the re-insertion threshold.
+    fn find_swap(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: &dyn Cost<N>,
+        prediction: &Prediction<'_, N>,
+        threshold: f64,
+        time: f64,
+    ) -> Result<Option<(usize, usize, f64)>, ControllerError> {
+        for back_rank in 0..self.removed.len() {
+            let back = self.removed[back_rank];
+            let Some(back_gain) = tasks.get(back).map(TaskValue::gain) else {
+                continue;
+            };
+            if time - self.removed_at[back] < self.dwell(back) {
+                continue;
+            }
+            for out_rank in 0..self.stacked.len() {
+                let out = self.stacked[out_rank];
+                if self.protected[out] || self.removal_count[out] >= self.parameters.max_removals {
+                    continue;
+                }
+                self.trial_order.clear();
+                self.trial_order
+                    .extend(self.stacked.iter().copied().filter(|&t| t != out));
+                let at = self.trial_order.partition_point(|&t| t < back);
+                self.trial_order.insert(at, back);
+                let horizon = self.parameters.reinsertion_look_ahead / back_gain;
+                let swapped =
+                    prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                let predicted_cost = predicted_value(cost, &swapped)?;
+                if predicted_cost <= threshold {
+                    return Ok(Some((back, out, predicted_cost)));
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// `T_dwell · 2^{k−1}`: how long a task removed `k` times stays out at least (D7).
+    fn dwell(&self, task: usize) -> f64 {
+        let doublings = self.removal_count[task].saturating_sub(1).min(30);
+        self.parameters.reinsertion_dwell * f64::from(1u32 << doublings)
     }
 
     fn reinsert(
@@ -1085,10 +1292,13 @@ impl<const N: usize> StackController<N> {
     }
 }
 
-/// The guard's value at `q`, `+∞` when the guard cannot even be evaluated there because a target point would be behind
-/// the camera (the worst visibility there is).
-fn guard_value<const N: usize>(guard: &dyn Cost<N>, q: &JointVector<N>) -> Result<f64, CostError> {
-    match guard.value(q) {
+/// A cost at a predicted configuration `q̂`: `+∞` when it cannot be evaluated there because a target point would be
+/// behind the camera (the worst there is: the prediction says the target is lost).
+fn predicted_value<const N: usize>(
+    cost: &dyn Cost<N>,
+    q: &JointVector<N>,
+) -> Result<f64, CostError> {
+    match cost.value(q) {
         Err(CostError::PointBehindCamera { .. }) => Ok(f64::INFINITY),
         other => other,
     }

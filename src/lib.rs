@@ -17,6 +17,7 @@ pub mod robot;
 pub mod scenario;
 pub mod sim;
 pub mod stack;
+pub mod study;
 pub mod target;
 pub mod task;
 pub mod visual_task;

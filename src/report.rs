@@ -160,6 +160,14 @@ pub struct EventSummary {
     /// For a removal, the cost term that dominated the predicted cost (extra field).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cost: Option<String>,
+    /// For a removal, the predicted cost `h(q̂)`; for a re-insertion or fallback, the cost predicted with the task
+    /// back (extra field).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted_cost: Option<f64>,
+    /// The threshold `predicted_cost` was compared with: `h_max` for a removal, `r_back · h_max` for a re-insertion
+    /// (extra field).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<f64>,
 }
 
 /// Which link hit which obstacle.
@@ -218,7 +226,9 @@ impl RunSummary {
             _ => (None, None),
         };
         let reason = match &run.outcome {
-            Outcome::Stalled { reason, .. } | Outcome::MaxIterations { reason } => Some(reason.clone()),
+            Outcome::Stalled { reason, .. } | Outcome::MaxIterations { reason } => {
+                Some(reason.clone())
+            }
             _ => None,
         };
         let collision = match &run.outcome {
@@ -247,6 +257,16 @@ impl RunSummary {
                     jump: continuity.jump,
                     max_step_after: continuity.max_step_after,
                     cost: e.removal.as_ref().map(|r| r.cost.clone()),
+                    predicted_cost: e
+                        .removal
+                        .as_ref()
+                        .map(|r| r.predicted_cost)
+                        .or(e.reinsertion.map(|r| r.predicted_cost)),
+                    threshold: e
+                        .removal
+                        .as_ref()
+                        .map(|r| r.threshold)
+                        .or(e.reinsertion.map(|r| r.threshold)),
                 })
                 .collect(),
             max_velocity_jump: run.max_velocity_jump(),

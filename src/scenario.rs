@@ -116,7 +116,20 @@ pub struct PoseSpec {
 }
 
 impl PoseSpec {
-    fn to_isometry(self, field: &str) -> Result<Isometry3<f64>, ScenarioError> {
+    /// The pose written as a translation and roll–pitch–yaw angles.
+    pub fn from_isometry(pose: &Isometry3<f64>) -> Self {
+        let (roll, pitch, yaw) = pose.rotation.euler_angles();
+        Self {
+            translation_m: pose.translation.vector.into(),
+            rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
+        }
+    }
+
+    /// The rigid transform; `field` names the pose in errors.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Invalid`] for a non-finite value.
+    pub fn to_isometry(self, field: &str) -> Result<Isometry3<f64>, ScenarioError> {
         if !self
             .translation_m
             .iter()
@@ -395,7 +408,7 @@ impl Scenario {
     /// The first invalid field: an unknown robot, a joint vector of the wrong size or outside the limits, invalid
     /// intrinsics, target, poses, gains or thresholds.
     pub fn experiment<const N: usize>(&self) -> Result<Experiment<N>, ScenarioError> {
-        let (chain, camera) = self.robot::<N>()?;
+        let (chain, camera) = self.robot_model::<N>()?;
         let desired_joints = joints::<N>("desired.joints", &self.desired.joints)?;
         let start = joints::<N>("start.joints", &self.start.joints)?;
         for (field, q) in [
@@ -529,7 +542,13 @@ impl Scenario {
         }
     }
 
-    fn robot<const N: usize>(&self) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
+    /// The robot's chain and camera mount.
+    ///
+    /// # Errors
+    /// An unknown built-in, an unreadable or invalid URDF, a chain without `N` joints, an invalid mount.
+    pub fn robot_model<const N: usize>(
+        &self,
+    ) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
         match &self.robot {
             RobotSpec::Builtin { builtin } => {
                 let robot = builtin::by_name::<N>(builtin)?;
@@ -611,6 +630,12 @@ impl Scenario {
             controller,
             avoid_joint_limits: avoid,
             guard_visibility: kind == RunKind::StackController,
+            // The centroid (first of the paper's tasks) keeps the target in the image.
+            protected_tasks: if kind == RunKind::StackController {
+                &[0]
+            } else {
+                &[]
+            },
         };
         Ok(simulate(
             &experiment.scene,

@@ -25,8 +25,8 @@
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
-    ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController, StackEvent,
-    TaskCriteria,
+    ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
+    StackEvent, TaskCriteria,
 };
 use crate::feature::{FeatureError, Observation};
 use crate::law::{ControlLaw, LawError};
@@ -268,9 +268,10 @@ pub struct SimulationParameters {
     pub convergence_error: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
-    /// The full method's removal guard (D6 (d)): a removal must not bring the target points predicted within this
-    /// many pixels of the image border closer to it than keeping the task would (px; default 20).
-    pub removal_guard_margin_px: f64,
+    /// The full method keeps the target points this far from the image border (px; default 20): when the scene has no
+    /// visibility cost of its own, one with this margin joins the full method's avoidance cost, and guards its
+    /// removals (D6 (d)): a removal must not bring the predicted points deeper into that band than keeping the task.
+    pub visibility_margin_px: f64,
 }
 
 impl Default for SimulationParameters {
@@ -280,7 +281,7 @@ impl Default for SimulationParameters {
             max_iterations: 10_000,
             convergence_error: 1e-4,
             image_margin: 0.0,
-            removal_guard_margin_px: 20.0,
+            visibility_margin_px: 20.0,
         }
     }
 }
@@ -307,9 +308,9 @@ impl SimulationParameters {
         if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
             return invalid("image_margin", self.image_margin, "finite and ≥ 0");
         }
-        let guard = self.removal_guard_margin_px;
+        let guard = self.visibility_margin_px;
         if !(guard.is_finite() && guard >= 0.0) {
-            return invalid("removal_guard_margin_px", guard, "finite and ≥ 0");
+            return invalid("visibility_margin_px", guard, "finite and ≥ 0");
         }
         Ok(())
     }
@@ -345,6 +346,12 @@ pub enum Outcome {
         /// Why it could not come in.
         reason: String,
     },
+    /// The target is seen edge-on: its plane passes through the optical centre, or a feature is undefined on the image
+    /// (collinear points, vanishing area).
+    ImageDegenerate {
+        /// What is undefined.
+        reason: String,
+    },
     /// A link touched or penetrated an obstacle (signed distance `≤ 0`).
     Collision {
         /// The link.
@@ -368,6 +375,7 @@ impl Outcome {
             Self::FeatureLost { .. } => "feature_lost",
             Self::MaxIterations { .. } => "max_iterations",
             Self::Stalled { .. } => "stalled",
+            Self::ImageDegenerate { .. } => "image_degenerate",
             Self::Collision { .. } => "collision",
         }
     }
@@ -446,12 +454,8 @@ impl<const N: usize> Run<N> {
 
     /// The velocity sent at each iteration that sent one, from rest: `q̇_{−1} = 0`, then `q̇_0, q̇_1, …`.
     fn sent_velocities(&self) -> impl Iterator<Item = JointVector<N>> + '_ {
-        std::iter::once(JointVector::zeros()).chain(
-            self.records
-                .iter()
-                .filter(|r| r.sent)
-                .map(|r| r.velocity),
-        )
+        std::iter::once(JointVector::zeros())
+            .chain(self.records.iter().filter(|r| r.sent).map(|r| r.velocity))
     }
 
     /// `‖q̇_k − q̇_{k−1}‖` for every iteration `k` that sent a velocity (D14; `q̇_{−1} = 0`: the run starts at rest).
@@ -631,9 +635,11 @@ pub struct Drive<'a> {
     /// the scene has them) is given to the law and the controller (projected-gradient avoidance and prediction);
     /// without it, `κ` has no effect and no task is ever removed.
     pub avoid_joint_limits: bool,
-    /// Whether removals are guarded by the visibility of the target ([`SimulationParameters::removal_guard_margin_px`],
+    /// Whether removals are guarded by the visibility of the target ([`SimulationParameters::visibility_margin_px`],
     /// D6 (d)): the full method's default.
     pub guard_visibility: bool,
+    /// Tasks never removed (D6 (e)): the full method protects the centroid, which keeps the target in the image.
+    pub protected_tasks: &'a [usize],
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
@@ -660,24 +666,35 @@ pub fn simulate<const N: usize>(
         .iter()
         .map(TaskValue::for_task::<VisualContext<'_, N>, _>)
         .collect::<Result<_, _>>()?;
-    let mut controller = StackController::new(drive.controller, &values)?;
-    let avoidance = scene.avoidance_cost();
+    let mut controller = StackController::new(drive.controller, &values)?
+        .with_protected_tasks(drive.protected_tasks)?;
+    // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
+    // avoidance cost and guards its removals (D6 (d)).
+    let default_visibility = match &scene.visibility {
+        None if drive.guard_visibility && drive.controller.allow_removal => {
+            let points = scene.target.points().map(|p| scene.base_from_object * p);
+            Some(VisibilityCost::new(
+                scene.chain.clone(),
+                scene.camera,
+                &scene.intrinsics,
+                &points,
+                parameters.visibility_margin_px,
+            )?)
+        }
+        _ => None,
+    };
+    let mut avoidance = scene.avoidance_cost();
+    if let Some(visibility) = &default_visibility {
+        avoidance.push(visibility);
+    }
     let cost: Option<&dyn Cost<N>> = drive
         .avoid_joint_limits
         .then_some(&avoidance as &dyn Cost<N>);
-    let guard_cost = if drive.guard_visibility && drive.controller.allow_removal {
-        let points = scene.target.points().map(|p| scene.base_from_object * p);
-        Some(VisibilityCost::new(
-            scene.chain.clone(),
-            scene.camera,
-            &scene.intrinsics,
-            &points,
-            parameters.removal_guard_margin_px,
-        )?)
-    } else {
-        None
+    let guard = match (&default_visibility, &scene.visibility) {
+        _ if !drive.guard_visibility => None,
+        (Some(visibility), _) | (None, Some(visibility)) => Some(visibility as &dyn Cost<N>),
+        (None, None) => None,
     };
-    let guard = guard_cost.as_ref().map(|g| g as &dyn Cost<N>);
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
@@ -690,6 +707,12 @@ pub fn simulate<const N: usize>(
             Ok(view) => view,
             Err(SimError::Camera(CameraError::PointBehindCamera { index, .. })) => {
                 outcome = Some(Outcome::FeatureLost { point: index });
+                break;
+            }
+            Err(SimError::Target(error)) => {
+                outcome = Some(Outcome::ImageDegenerate {
+                    reason: error.to_string(),
+                });
                 break;
             }
             Err(error) => return Err(error),
@@ -707,8 +730,16 @@ pub fn simulate<const N: usize>(
             observation: &observation,
             camera_jacobian: &view.camera_jacobian,
         };
-        for (task, value) in tasks.iter().zip(values.iter_mut()) {
-            task.evaluate(&context, value)?;
+        // A target seen so obliquely that a feature is undefined (collinear points, vanishing area) is lost as well.
+        if let Some(error) = tasks
+            .iter()
+            .zip(values.iter_mut())
+            .find_map(|(task, value)| task.evaluate(&context, value).err())
+        {
+            outcome = Some(Outcome::ImageDegenerate {
+                reason: error.to_string(),
+            });
+            break;
         }
         let task_errors: Vec<f64> = values.iter().map(|v| v.error().norm()).collect();
         let mut record = Record {
@@ -735,19 +766,20 @@ pub fn simulate<const N: usize>(
             outcome = Some(Outcome::Converged);
             break;
         }
-        let step = match controller.step_guarded(drive.law, &values, cost, guard, &q, iteration, time) {
-            Ok(step) => step,
-            // The visibility cost is undefined once the (predicted) motion takes a point behind the camera: the
-            // feature is lost, as when the camera itself gets there.
-            Err(error) => match point_behind_camera(&error) {
-                Some(point) => {
-                    records.push(record);
-                    outcome = Some(Outcome::FeatureLost { point });
-                    break;
-                }
-                None => return Err(error.into()),
-            },
-        };
+        let step =
+            match controller.step_guarded(drive.law, &values, cost, guard, &q, iteration, time) {
+                Ok(step) => step,
+                // The visibility cost is undefined once the (predicted) motion takes a point behind the camera: the
+                // feature is lost, as when the camera itself gets there.
+                Err(error) => match point_behind_camera(&error) {
+                    Some(point) => {
+                        records.push(record);
+                        outcome = Some(Outcome::FeatureLost { point });
+                        break;
+                    }
+                    None => return Err(error.into()),
+                },
+            };
         record.velocity = step.velocity;
         record.sent = true;
         // The stack that produced the velocity sent (a change made at this iteration included).

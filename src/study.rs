@@ -1,0 +1,689 @@
+//! The convergence-domain study: from how many situations does each method reach its goal? (the paper's claim, MATH
+//! §9: sequencing tasks and removing the blocking one enlarges the set of situations from which the robot converges.)
+//!
+//! A study takes a scenario, draws `K` situations per **family** — starts perturbed around the scenario's start (mild,
+//! strong, wide), the goal configuration moved, the desired view turned about the target, starts drawn uniformly
+//! inside the joint limits — and runs the four methods of [`RunKind`] on every draw. Draws are seeded: draw `k` of
+//! family `f` under seed `s` is the same on every machine and in every thread, so a study is reproducible and its
+//! draws run in parallel on all cores (rayon).
+//!
+//! A draw whose situation is not a valid experiment (a start outside the limits, a target not entirely in the image at
+//! the start, a goal outside the limits) is drawn again from the same stream, up to [`MAX_ATTEMPTS`] times; the number
+//! of such rejections is reported.
+//!
+//! ```no_run
+//! use servostack::scenario::Scenario;
+//! use servostack::study::{standard_families, Study};
+//! let scenario = Scenario::from_file("assets/scenarios/paper_afma6.toml".as_ref())?;
+//! let study = Study::new(&scenario, standard_families(), 200, 1)?.run::<6>()?;
+//! print!("{study}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use crate::robot::{JointKind, KinematicsWorkspace};
+use crate::scenario::{PoseSpec, RunKind, Scenario, ScenarioError};
+use crate::sim::{Outcome, Run};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// How many times a draw is attempted before the family is reported as unable to produce valid situations.
+pub const MAX_ATTEMPTS: usize = 10_000;
+
+/// Errors of a study.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    /// The scenario itself is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// A study parameter is out of range.
+    #[error("study parameter `{name}` = {value} is invalid: {expected}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is expected.
+        expected: &'static str,
+    },
+    /// No valid situation was found for a draw.
+    #[error("family {family}: draw {draw} found no valid situation in {MAX_ATTEMPTS} attempts (last: {last})")]
+    NoValidDraw {
+        /// The family.
+        family: String,
+        /// The draw.
+        draw: usize,
+        /// Why the last attempt was rejected.
+        last: String,
+    },
+}
+
+/// How the situations of a family are drawn from the scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Perturbation {
+    /// Every joint of the start moved uniformly within `±translation_m` (prismatic) or `±rotation_deg` (revolute).
+    Start {
+        /// Half-width for prismatic joints (m).
+        translation_m: f64,
+        /// Half-width for revolute joints (degrees).
+        rotation_deg: f64,
+    },
+    /// Every joint of the goal configuration moved the same way (the target moves with the goal: it is placed so that
+    /// the goal sees it as the desired view).
+    Goal {
+        /// Half-width for prismatic joints (m).
+        translation_m: f64,
+        /// Half-width for revolute joints (degrees).
+        rotation_deg: f64,
+    },
+    /// The desired view turned about the target's centre by a rotation of uniform random axis and angle in
+    /// `[0, max_angle_deg]` (the camera orbits the target at the goal).
+    View {
+        /// The largest angle (degrees).
+        max_angle_deg: f64,
+    },
+    /// The start drawn uniformly inside the joint limits.
+    Uniform,
+}
+
+/// A named family of situations.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Family {
+    /// Its name in tables and files.
+    pub name: String,
+    /// How its situations are drawn.
+    pub perturbation: Perturbation,
+}
+
+impl Family {
+    /// A family.
+    pub fn new(name: &str, perturbation: Perturbation) -> Self {
+        Self {
+            name: name.into(),
+            perturbation,
+        }
+    }
+}
+
+/// The families of the study (issue's table): starts mild (±2 cm / ±3°), strong (±4 cm / ±6°), wide (±8 cm / ±12°);
+/// goal moved ±2 cm / ±2° and ±4 cm / ±4°; desired view turned ≤ 5° and ≤ 10°; starts uniform inside the limits.
+pub fn standard_families() -> Vec<Family> {
+    use Perturbation::*;
+    vec![
+        Family::new(
+            "mild",
+            Start {
+                translation_m: 0.02,
+                rotation_deg: 3.0,
+            },
+        ),
+        Family::new(
+            "strong",
+            Start {
+                translation_m: 0.04,
+                rotation_deg: 6.0,
+            },
+        ),
+        Family::new(
+            "wide",
+            Start {
+                translation_m: 0.08,
+                rotation_deg: 12.0,
+            },
+        ),
+        Family::new(
+            "goal_2cm",
+            Goal {
+                translation_m: 0.02,
+                rotation_deg: 2.0,
+            },
+        ),
+        Family::new(
+            "goal_4cm",
+            Goal {
+                translation_m: 0.04,
+                rotation_deg: 4.0,
+            },
+        ),
+        Family::new("view_5deg", View { max_angle_deg: 5.0 }),
+        Family::new(
+            "view_10deg",
+            View {
+                max_angle_deg: 10.0,
+            },
+        ),
+        Family::new("uniform", Uniform),
+    ]
+}
+
+/// A study: a scenario, families, `K` draws per family and a seed.
+#[derive(Debug, Clone)]
+pub struct Study<'a> {
+    scenario: &'a Scenario,
+    families: Vec<Family>,
+    draws: usize,
+    seed: u64,
+    methods: Vec<RunKind>,
+}
+
+/// What one method did on one draw.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MethodResult {
+    /// The method.
+    pub method: RunKind,
+    /// The outcome's name ([`Outcome::name`]).
+    pub outcome: &'static str,
+    /// Iterations performed.
+    pub iterations: usize,
+    /// Removals over the run.
+    pub removals: usize,
+    /// The largest number of removals of one task.
+    pub max_removals_of_a_task: usize,
+    /// Whether the controller fell back to the stack with gradient (D13).
+    pub fallback: bool,
+    /// `max_k ‖q̇_k − q̇_{k−1}‖` (D14).
+    pub max_velocity_step: f64,
+    /// The camera's distance to its goal at the end (m).
+    pub camera_translation_error: f64,
+    /// The camera's rotation to its goal at the end (degrees).
+    pub camera_rotation_error_deg: f64,
+    /// The reason of a `stalled` or `max_iterations` outcome.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+impl MethodResult {
+    /// `true` when the run converged.
+    pub fn converged(&self) -> bool {
+        self.outcome == "converged"
+    }
+}
+
+/// One draw: its situation and what each method did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DrawResult {
+    /// The draw's index in its family.
+    pub draw: usize,
+    /// Invalid situations rejected before this one.
+    pub rejected: usize,
+    /// The start configuration.
+    pub start: Vec<f64>,
+    /// The goal configuration.
+    pub goal: Vec<f64>,
+    /// One result per method, in the study's order.
+    pub methods: Vec<MethodResult>,
+}
+
+/// Per method, over a family.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MethodSummary {
+    /// The method.
+    pub method: RunKind,
+    /// Draws that converged.
+    pub converged: usize,
+    /// Draws.
+    pub draws: usize,
+    /// Count per outcome name.
+    pub outcomes: std::collections::BTreeMap<&'static str, usize>,
+    /// The median number of removals per run.
+    pub median_removals: f64,
+    /// The largest number of removals of one task in one run.
+    pub max_removals_of_a_task: usize,
+    /// Runs that fell back (D13).
+    pub fallbacks: usize,
+    /// The median over runs of `max_k ‖q̇_k − q̇_{k−1}‖`.
+    pub median_max_velocity_step: f64,
+}
+
+/// A family's results.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FamilyResult {
+    /// The family.
+    pub family: Family,
+    /// Per method.
+    pub methods: Vec<MethodSummary>,
+    /// Draws where at least one of the other methods converged.
+    pub any_baseline_converged: usize,
+    /// Of those, draws where the full method converged too.
+    pub full_method_also_converged: usize,
+    /// Draws where the stack with gradient converged and the full method did not.
+    pub full_method_worse_than_stack_gradient: usize,
+    /// Every draw.
+    pub draws: Vec<DrawResult>,
+}
+
+/// The results of a study.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyResult {
+    /// The scenario's name.
+    pub scenario: String,
+    /// The seed.
+    pub seed: u64,
+    /// Draws per family.
+    pub draws_per_family: usize,
+    /// Per family.
+    pub families: Vec<FamilyResult>,
+    /// Simulated control iterations over the study.
+    pub iterations: usize,
+    /// Wall-clock time of the study (s).
+    pub seconds: f64,
+    /// Threads used.
+    pub threads: usize,
+}
+
+impl<'a> Study<'a> {
+    /// A study of the four methods on `scenario`, `draws` per family, seeded by `seed`.
+    ///
+    /// # Errors
+    /// [`StudyError::InvalidParameter`] for `draws = 0`.
+    pub fn new(
+        scenario: &'a Scenario,
+        families: Vec<Family>,
+        draws: usize,
+        seed: u64,
+    ) -> Result<Self, StudyError> {
+        if draws == 0 {
+            return Err(StudyError::InvalidParameter {
+                name: "draws",
+                value: 0.0,
+                expected: "≥ 1",
+            });
+        }
+        for family in &families {
+            family.perturbation.validate()?;
+        }
+        Ok(Self {
+            scenario,
+            families,
+            draws,
+            seed,
+            methods: RunKind::ALL.to_vec(),
+        })
+    }
+
+    /// Restricts the methods run on every draw (the full method and its baselines by default).
+    pub fn with_methods(mut self, methods: &[RunKind]) -> Self {
+        self.methods = methods.to_vec();
+        self
+    }
+
+    /// Runs every draw of every family on all cores.
+    ///
+    /// # Errors
+    /// An invalid scenario, a family that cannot produce valid draws, a failure of the models (not an outcome).
+    pub fn run<const N: usize>(&self) -> Result<StudyResult, StudyError> {
+        let clock = std::time::Instant::now();
+        // The scenario itself must be valid.
+        self.scenario.experiment::<N>()?;
+        let mut families = Vec::with_capacity(self.families.len());
+        let mut iterations = 0;
+        for (index, family) in self.families.iter().enumerate() {
+            let draws: Vec<DrawResult> = (0..self.draws)
+                .into_par_iter()
+                .map(|draw| self.run_draw::<N>(index, draw))
+                .collect::<Result<_, _>>()?;
+            iterations += draws
+                .iter()
+                .flat_map(|d| &d.methods)
+                .map(|m| m.iterations)
+                .sum::<usize>();
+            families.push(self.summarize(family, draws));
+        }
+        Ok(StudyResult {
+            scenario: self.scenario.name.clone(),
+            seed: self.seed,
+            draws_per_family: self.draws,
+            families,
+            iterations,
+            seconds: clock.elapsed().as_secs_f64(),
+            threads: rayon::current_num_threads(),
+        })
+    }
+
+    /// The seeded stream of draw `draw` of family `index`: independent of the thread that runs it.
+    fn stream(&self, index: usize, draw: usize) -> StdRng {
+        let mixed = self
+            .seed
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add((index as u64) << 32)
+            .wrapping_add(draw as u64);
+        StdRng::seed_from_u64(mixed)
+    }
+
+    /// The scenario of draw `draw` of the family named `family`, as the study runs it (to reproduce one draw with
+    /// [`Scenario::run`] or write it to a file), with the number of invalid situations rejected before it.
+    ///
+    /// # Errors
+    /// An unknown family name, [`StudyError::NoValidDraw`], model failures.
+    pub fn situation<const N: usize>(
+        &self,
+        family: &str,
+        draw: usize,
+    ) -> Result<(Scenario, crate::scenario::Experiment<N>, usize), StudyError> {
+        let index = self
+            .families
+            .iter()
+            .position(|f| f.name == family)
+            .ok_or_else(|| StudyError::InvalidParameter {
+                name: "family",
+                value: f64::NAN,
+                expected: "the name of one of the study's families",
+            })?;
+        self.valid_situation::<N>(index, draw)
+    }
+
+    fn valid_situation<const N: usize>(
+        &self,
+        index: usize,
+        draw: usize,
+    ) -> Result<(Scenario, crate::scenario::Experiment<N>, usize), StudyError> {
+        let family = &self.families[index];
+        let mut rng = self.stream(index, draw);
+        let mut last = String::new();
+        for rejected in 0..MAX_ATTEMPTS {
+            let scenario = family.perturbation.apply::<N>(self.scenario, &mut rng)?;
+            match scenario.experiment::<N>() {
+                Ok(experiment) => return Ok((scenario, experiment, rejected)),
+                Err(ScenarioError::Invalid { field, reason }) => {
+                    last = format!("{field}: {reason}");
+                }
+                Err(error) => return Err(error.into()),
+            }
+        }
+        Err(StudyError::NoValidDraw {
+            family: family.name.clone(),
+            draw,
+            last,
+        })
+    }
+
+    fn run_draw<const N: usize>(
+        &self,
+        index: usize,
+        draw: usize,
+    ) -> Result<DrawResult, StudyError> {
+        {
+            let (scenario, experiment, rejected) = self.valid_situation::<N>(index, draw)?;
+            let mut methods = Vec::with_capacity(self.methods.len());
+            for &method in &self.methods {
+                let run = scenario.run_experiment(&experiment, method)?;
+                methods.push(method_result(method, &run, &experiment)?);
+            }
+            Ok(DrawResult {
+                draw,
+                rejected,
+                start: scenario.start.joints.clone(),
+                goal: scenario.desired.joints.clone(),
+                methods,
+            })
+        }
+    }
+
+    fn summarize(&self, family: &Family, draws: Vec<DrawResult>) -> FamilyResult {
+        let position = |kind| self.methods.iter().position(|&m| m == kind);
+        let full = position(RunKind::StackController);
+        let stack_gradient = position(RunKind::StackGradient);
+        let converged =
+            |d: &DrawResult, i: Option<usize>| i.is_some_and(|i| d.methods[i].converged());
+        let any_baseline = |d: &DrawResult| {
+            d.methods
+                .iter()
+                .any(|m| m.method != RunKind::StackController && m.converged())
+        };
+        let methods = self
+            .methods
+            .iter()
+            .enumerate()
+            .map(|(i, &method)| {
+                let results: Vec<&MethodResult> = draws.iter().map(|d| &d.methods[i]).collect();
+                let mut outcomes = std::collections::BTreeMap::new();
+                for r in &results {
+                    *outcomes.entry(r.outcome).or_insert(0) += 1;
+                }
+                MethodSummary {
+                    method,
+                    converged: results.iter().filter(|r| r.converged()).count(),
+                    draws: results.len(),
+                    outcomes,
+                    median_removals: median(results.iter().map(|r| r.removals as f64)),
+                    max_removals_of_a_task: results
+                        .iter()
+                        .map(|r| r.max_removals_of_a_task)
+                        .max()
+                        .unwrap_or(0),
+                    fallbacks: results.iter().filter(|r| r.fallback).count(),
+                    median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
+                }
+            })
+            .collect();
+        FamilyResult {
+            family: family.clone(),
+            methods,
+            any_baseline_converged: draws.iter().filter(|d| any_baseline(d)).count(),
+            full_method_also_converged: draws
+                .iter()
+                .filter(|d| any_baseline(d) && converged(d, full))
+                .count(),
+            full_method_worse_than_stack_gradient: draws
+                .iter()
+                .filter(|d| converged(d, stack_gradient) && full.is_some() && !converged(d, full))
+                .count(),
+            draws,
+        }
+    }
+}
+
+impl Perturbation {
+    fn validate(&self) -> Result<(), StudyError> {
+        let check = |name, value: f64| {
+            if value.is_finite() && value >= 0.0 {
+                Ok(())
+            } else {
+                Err(StudyError::InvalidParameter {
+                    name,
+                    value,
+                    expected: "finite and ≥ 0",
+                })
+            }
+        };
+        match *self {
+            Self::Start {
+                translation_m,
+                rotation_deg,
+            }
+            | Self::Goal {
+                translation_m,
+                rotation_deg,
+            } => {
+                check("translation_m", translation_m)?;
+                check("rotation_deg", rotation_deg)
+            }
+            Self::View { max_angle_deg } => check("max_angle_deg", max_angle_deg),
+            Self::Uniform => Ok(()),
+        }
+    }
+
+    /// The scenario with one situation of this family drawn from `rng`.
+    fn apply<const N: usize>(
+        &self,
+        scenario: &Scenario,
+        rng: &mut StdRng,
+    ) -> Result<Scenario, StudyError> {
+        let mut drawn = scenario.clone();
+        let (chain, _) = scenario.robot_model::<N>()?;
+        let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind()).collect();
+        let jitter =
+            |values: &mut Vec<f64>, rng: &mut StdRng, translation: f64, rotation_deg: f64| {
+                for (value, kind) in values.iter_mut().zip(&kinds) {
+                    let half = if kind.is_rotational() {
+                        rotation_deg.to_radians()
+                    } else {
+                        translation
+                    };
+                    *value += rng.random_range(-1.0..=1.0) * half;
+                }
+            };
+        match *self {
+            Self::Start {
+                translation_m,
+                rotation_deg,
+            } => jitter(&mut drawn.start.joints, rng, translation_m, rotation_deg),
+            Self::Goal {
+                translation_m,
+                rotation_deg,
+            } => jitter(&mut drawn.desired.joints, rng, translation_m, rotation_deg),
+            Self::View { max_angle_deg } => {
+                let axis = loop {
+                    let v = Vector3::new(
+                        rng.random_range(-1.0..=1.0),
+                        rng.random_range(-1.0..=1.0),
+                        rng.random_range(-1.0..=1.0),
+                    );
+                    let norm = v.norm();
+                    if norm > 1e-3 && norm <= 1.0 {
+                        break nalgebra::Unit::new_normalize(v);
+                    }
+                };
+                let angle = rng.random_range(0.0..=max_angle_deg.to_radians());
+                let cd_from_o = scenario
+                    .desired
+                    .camera_from_target
+                    .to_isometry("desired.camera_from_target")?;
+                // Turn the target about its own centre: the camera orbits it at the same distance.
+                let turned = cd_from_o
+                    * Isometry3::from_parts(
+                        Translation3::identity(),
+                        UnitQuaternion::from_axis_angle(&axis, angle),
+                    );
+                drawn.desired.camera_from_target = PoseSpec::from_isometry(&turned);
+            }
+            Self::Uniform => {
+                for (i, value) in drawn.start.joints.iter_mut().enumerate() {
+                    let (low, high) = (chain.lower_limits()[i], chain.upper_limits()[i]);
+                    *value = rng.random_range(low..=high);
+                }
+            }
+        }
+        Ok(drawn)
+    }
+}
+
+/// The summary of one run, with the camera's distance to its goal at the end.
+fn method_result<const N: usize>(
+    method: RunKind,
+    run: &Run<N>,
+    experiment: &crate::scenario::Experiment<N>,
+) -> Result<MethodResult, StudyError> {
+    let mut per_task = vec![0usize; run.task_names.len()];
+    for event in run.events_of(crate::controller::EventKind::Remove) {
+        per_task[event.task] += 1;
+    }
+    let q_end = run.records.last().map_or(experiment.start, |r| r.q);
+    let (camera_translation_error, camera_rotation_error_deg) = match experiment
+        .scene
+        .observe(&mut KinematicsWorkspace::new(), &q_end)
+    {
+        Ok(view) => {
+            let c_from_cd = view.c_from_o * experiment.desired_camera_from_target.inverse();
+            (
+                c_from_cd.translation.vector.norm(),
+                c_from_cd.rotation.angle().to_degrees(),
+            )
+        }
+        Err(_) => (f64::INFINITY, f64::INFINITY),
+    };
+    let reason = match &run.outcome {
+        Outcome::Stalled { reason, .. } | Outcome::MaxIterations { reason } => Some(reason.clone()),
+        _ => None,
+    };
+    Ok(MethodResult {
+        method,
+        outcome: run.outcome.name(),
+        iterations: run.iterations(),
+        removals: per_task.iter().sum(),
+        max_removals_of_a_task: per_task.iter().copied().max().unwrap_or(0),
+        fallback: run
+            .events_of(crate::controller::EventKind::Fallback)
+            .next()
+            .is_some(),
+        max_velocity_step: run.max_velocity_step(),
+        camera_translation_error,
+        camera_rotation_error_deg,
+        reason,
+    })
+}
+
+/// The median of `values` (`NaN` when empty).
+fn median(values: impl Iterator<Item = f64>) -> f64 {
+    let mut values: Vec<f64> = values.collect();
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let mid = values.len() / 2;
+    if values.len() % 2 == 1 {
+        values[mid]
+    } else {
+        0.5 * (values[mid - 1] + values[mid])
+    }
+}
+
+impl std::fmt::Display for StudyResult {
+    /// The success table: per family, the draws each method converged in; then the full method's removals and how it
+    /// compares with its baselines on the same draws.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "convergence domain of {} ({} draws per family, seed {})",
+            self.scenario, self.draws_per_family, self.seed
+        )?;
+        let Some(first) = self.families.first() else {
+            return Ok(());
+        };
+        write!(f, "{:<12}", "family")?;
+        for m in &first.methods {
+            write!(f, " {:>17}", m.method.name())?;
+        }
+        writeln!(
+            f,
+            " {:>10} {:>9} {:>8} {:>9}",
+            "removals", "fallback", "covered", "worse"
+        )?;
+        for family in &self.families {
+            write!(f, "{:<12}", family.family.name)?;
+            for m in &family.methods {
+                write!(f, " {:>17}", format!("{}/{}", m.converged, m.draws))?;
+            }
+            let full = family
+                .methods
+                .iter()
+                .find(|m| m.method == RunKind::StackController);
+            writeln!(
+                f,
+                " {:>10} {:>9} {:>8} {:>9}",
+                full.map_or("-".into(), |m| format!("{}", m.median_removals)),
+                full.map_or("-".into(), |m| m.fallbacks.to_string()),
+                format!(
+                    "{}/{}",
+                    family.full_method_also_converged, family.any_baseline_converged
+                ),
+                family.full_method_worse_than_stack_gradient
+            )?;
+        }
+        writeln!(
+            f,
+            "removals: median per run of the full method; covered: draws where the full method converged among those \
+             where a baseline did; worse: draws where stack_gradient converged and the full method did not"
+        )?;
+        let rate = self.iterations as f64 / self.seconds.max(1e-9);
+        writeln!(
+            f,
+            "{} control iterations in {:.1} s on {} threads ({:.0} iterations/s)",
+            self.iterations, self.seconds, self.threads, rate
+        )
+    }
+}
