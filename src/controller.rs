@@ -381,6 +381,9 @@ pub struct RemovalReport {
     pub cost: String,
     /// The criteria of every stacked task at the removal.
     pub criteria: Vec<TaskCriteria>,
+    /// For a removal made to let a removed task come back (a D7 swap), that task; `None` for a removal made because
+    /// the avoidance was predicted to fail.
+    pub swapped_for: Option<usize>,
 }
 
 /// Why a removed task came back.
@@ -901,6 +904,7 @@ impl<const N: usize> StackController<N> {
                     joint: predicted_gradient.iamax(),
                     cost: dominant,
                     criteria: self.criteria.clone(),
+                    swapped_for: None,
                 };
                 self.record(StackEvent {
                     iteration,
@@ -1130,6 +1134,7 @@ impl<const N: usize> StackController<N> {
                         joint: prediction.gradient.iamax(),
                         cost: cost.dominant_term(prediction.q)?.to_owned(),
                         criteria: self.criteria.clone(),
+                        swapped_for: Some(back),
                     }),
                     reinsertion: None,
                 });

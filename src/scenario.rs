@@ -229,6 +229,10 @@ pub struct TasksSpec {
     /// The a-priori depth `Z_g` (m) of the paper's centroid approximation (F31); default: the desired depth.
     #[serde(default)]
     pub a_priori_depth_m: Option<f64>,
+    /// `Z*` (m), the depth that normalises the size feature `a_n = Z* √(a*/a)` (\[M37\]); default: the desired depth
+    /// (the target centre's depth at the goal). Another value scales the feature and its interaction matrix.
+    #[serde(default)]
+    pub area_depth_m: Option<f64>,
 }
 
 /// The interaction source as written in files.
@@ -591,8 +595,9 @@ impl Scenario {
             .scene
             .view_from(&experiment.desired_camera_from_target)?;
         let desired = desired_view.observation().map_err(SimError::from)?;
-        let desired_depth = experiment.desired_camera_from_target.translation.z;
-        let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(desired_depth);
+        let goal_depth = experiment.desired_camera_from_target.translation.z;
+        let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(goal_depth);
+        let desired_depth = self.tasks.area_depth_m.unwrap_or(goal_depth);
         let source = self.tasks.interaction.into();
         let tasks = match kind {
             RunKind::Classical => vec![classical_task(
