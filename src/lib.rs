@@ -20,3 +20,9 @@ pub mod stack;
 pub mod target;
 pub mod task;
 pub mod visual_task;
+
+#[doc = include_str!("../docs/theory.md")]
+pub mod theory {
+    #[doc = include_str!("../docs/peer_scene.md")]
+    pub mod peer_scene {}
+}
