@@ -1,12 +1,12 @@
-//! Pseudo-inverses with an explicit rank policy, damped least squares, and projector helpers (MATH §2.1, D2).
+//! Pseudo-inverses with an explicit rank policy, damped least squares, and projector helpers ([theory §2.1](crate::theory#s2-1), [D2](crate::theory#d2)).
 //!
 //! Every level of the task stack needs, for its limited Jacobian `J̃ = J P` (`m × N`, `m` may exceed `N`), the
-//! least-squares velocity `J̃⁺ r` and the projector onto its row space `J̃⁺ J̃` (MATH \[M8\]). Both come from one
+//! least-squares velocity `J̃⁺ r` and the projector onto its row space `J̃⁺ J̃` ([\[M8\]](crate::theory#m8)). Both come from one
 //! singular value decomposition `J̃ = U Σ Vᵀ`:
 //!
 //! ```text
-//! J̃⁺ r   = Σ_{k kept} v_k (u_kᵀ r) / σ_k                (truncated, MATH §2.1.1)
-//! J̃^{#δ} r = Σ_k v_k σ_k (u_kᵀ r) / (σ_k² + δ²)         (damped least squares, MATH §2.1.2)
+//! J̃⁺ r   = Σ_{k kept} v_k (u_kᵀ r) / σ_k                (truncated, theory §2.1.1)
+//! J̃^{#δ} r = Σ_k v_k σ_k (u_kᵀ r) / (σ_k² + δ²)         (damped least squares, theory §2.1.2)
 //! J̃⁺ J̃   = Σ_{k kept} v_k v_kᵀ                          (always truncated and exact, D2)
 //! ```
 //!
@@ -16,7 +16,7 @@
 //! and is accurate to working precision for the small singular values that decide ranks (no normal equations, whose
 //! squared condition number would blur them).
 //!
-//! It works on the **smaller side** (DESIGN principle 3): a matrix with fewer rows than columns (`m < N`, every level
+//! It works on the **smaller side** (each level is solved on fixed-size storage of at most `N × N`): a matrix with fewer rows than columns (`m < N`, every level
 //! of the paper's stack) is decomposed through the `m` columns of `Aᵀ` (`m(m−1)/2` pairs instead of `N(N−1)/2`): a
 //! one-row level needs no rotation, a two-row level one rotation, the closed form of its `2 × 2` Gram matrix `AAᵀ`
 //! (the singular values are still taken as column norms, never as square roots of Gram eigenvalues). A square matrix,
@@ -24,7 +24,7 @@
 //! one on its `N × N` triangular factor. In a control loop the rotations start from the previous step's right singular
 //! vectors ([`ColumnSvd::decompose_warm`]). Columns that are zero (or rounding noise) cost no rotation.
 //!
-//! **Rank policy** ([`RankPolicy`], D2): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
+//! **Rank policy** ([`RankPolicy`], [D2](crate::theory#d2)): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
 //! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
 //! For a limited Jacobian `J̃_i = J_i P` the stack measures `σ_max` on the task's own scale, `max(σ_max(J̃_i), ‖J_i‖_F)`
 //! ([`ColumnSvd::decompose_with_scale`]).
@@ -78,7 +78,7 @@ pub enum LinalgError {
     },
 }
 
-/// Which singular values count as non-zero (MATH §2.1.1, D2): keep `σ_k > max(relative · σ_max, absolute)`.
+/// Which singular values count as non-zero ([theory §2.1.1](crate::theory#s2-1-1), [D2](crate::theory#d2)): keep `σ_k > max(relative · σ_max, absolute)`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RankPolicy {
     relative: f64,
@@ -130,7 +130,7 @@ impl Default for RankPolicy {
     }
 }
 
-/// The inverse used for the **velocity** term of each stack level (MATH §2.1.2, D2). The projector update always
+/// The inverse used for the **velocity** term of each stack level ([theory §2.1.2](crate::theory#s2-1-2), [D2](crate::theory#d2)). The projector update always
 /// uses the truncated, exact `J̃⁺J̃`.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -428,7 +428,7 @@ impl<const N: usize> ColumnSvd<N> {
     }
 
     /// Writes `A^{inv} r` into `out`, where `work` is the `W = A V` left by [`Self::decompose`] and the inverse is the
-    /// truncated pseudo-inverse or damped least squares (MATH §2.1.2).
+    /// truncated pseudo-inverse or damped least squares ([theory §2.1.2](crate::theory#s2-1-2)).
     ///
     /// # Errors
     /// [`LinalgError::DimensionMismatch`] when `r` and `work` have different row counts.
@@ -464,7 +464,7 @@ impl<const N: usize> ColumnSvd<N> {
     }
 
     /// Subtracts the projector onto the row space of `A`, `A⁺A = Σ_{k kept} v_k v_kᵀ`, from `projector`
-    /// (MATH \[M8\]), then re-symmetrises it (MATH §2.1.3).
+    /// ([\[M8\]](crate::theory#m8)), then re-symmetrises it ([theory §2.1.3](crate::theory#s2-1-3)).
     pub fn subtract_row_space_projector(&self, projector: &mut JointMatrix<N>) {
         for k in (0..N).filter(|&k| self.is_kept(k)) {
             let v = self.v.column(k);
@@ -474,7 +474,7 @@ impl<const N: usize> ColumnSvd<N> {
     }
 
     /// Writes `V_1ᵀ g`'s norm, with `V_1` the kept right singular vectors: the norm of the part of `g` in the row
-    /// space of `A` (MATH \[M26\]–\[M27\], criterion C2').
+    /// space of `A` ([\[M26\]](crate::theory#m26)–[\[M27\]](crate::theory#m27), criterion C2').
     pub fn row_space_component_norm(&self, g: &JointVector<N>) -> f64 {
         (0..N)
             .filter(|&k| self.is_kept(k))
@@ -743,7 +743,7 @@ pub(crate) fn mul_rows_to<const K: usize, const N: usize, R, SA, SO>(
     }
 }
 
-/// Replaces `p` by `(p + pᵀ)/2`, removing the asymmetry that repeated projector updates accumulate (MATH §2.1.3).
+/// Replaces `p` by `(p + pᵀ)/2`, removing the asymmetry that repeated projector updates accumulate ([theory §2.1.3](crate::theory#s2-1-3)).
 pub fn symmetrize<const N: usize>(p: &mut JointMatrix<N>) {
     for i in 0..N {
         for j in (i + 1)..N {
@@ -755,7 +755,7 @@ pub fn symmetrize<const N: usize>(p: &mut JointMatrix<N>) {
 }
 
 /// The orthogonal projector `I − A⁺A` onto the kernel of `a` (`m × N`), with the rank decided by `policy`
-/// (MATH §0, `P_i`). Copies `a` into `work` (same shape), which it overwrites.
+/// ([theory §0](crate::theory#s0), `P_i`). Copies `a` into `work` (same shape), which it overwrites.
 ///
 /// # Errors
 /// As [`ColumnSvd::decompose`]; [`LinalgError::DimensionMismatch`] when `work` and `a` differ in rows.

@@ -1,7 +1,7 @@
 //! Figures of the experiments (feature `plot`): line plots over iterations and image-plane trajectories, each
 //! written as a PNG and an SVG file.
 //!
-//! Two data-oriented figure descriptions cover the figures of the paper (DESIGN.md, module map):
+//! Two data-oriented figure descriptions cover the figures of the paper ([theory §9](crate::theory#s9)):
 //!
 //! * [`LinePlot`]: curves `y(x)` over iterations or time — normalised joint positions with the limits drawn as
 //!   [`HorizontalLine`]s at 0 and 1 and the stack events (push / remove / reinsert of a task) as labelled vertical
