@@ -32,18 +32,6 @@ struct Citation {
     number: u32,
 }
 
-impl Citation {
-    /// The id of the anchor that defines this number in the theory reference.
-    fn anchor(self) -> String {
-        let prefix = match self.kind {
-            Kind::Equation => 'm',
-            Kind::Paper => 'f',
-            Kind::Decision => 'd',
-        };
-        format!("{prefix}{}", self.number)
-    }
-}
-
 impl fmt::Display for Citation {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.kind {
