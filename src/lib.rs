@@ -26,3 +26,15 @@ pub mod theory {
     #[doc = include_str!("../docs/peer_scene.md")]
     pub mod peer_scene {}
 }
+
+/// Guides: the tasks a user meets first, each with code that compiles.
+pub mod guide {
+    #[doc = include_str!("../docs/guide/your_robot.md")]
+    pub mod your_robot {}
+    #[doc = include_str!("../docs/guide/reading_results.md")]
+    pub mod reading_results {}
+    #[doc = include_str!("../docs/guide/camera_loop.md")]
+    pub mod camera_loop {}
+    #[doc = include_str!("../docs/guide/tuning.md")]
+    pub mod tuning {}
+}
