@@ -1,4 +1,4 @@
-//! Every citation in the code and the docs resolves in the crate's theory reference (`docs/theory.md`, the module
+//! Every citation in the code, the docs and the scenario files resolves in the crate's theory reference (`docs/theory.md`, the module
 //! `servostack::theory`), and nothing sends the reader to a document outside the repository.
 //!
 //! Citations take three forms: the crate's equations `[M14]` (written `\[M14\]` in doc comments), the paper's
@@ -185,6 +185,7 @@ fn scanned_files() -> Vec<(String, String)> {
         collect_files(&root.join(dir), &["rs"], &mut files);
     }
     collect_files(&root.join("docs"), &["md"], &mut files);
+    collect_files(&root.join("assets/scenarios"), &["toml"], &mut files);
     files.sort();
     files
         .into_iter()
