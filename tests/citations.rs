@@ -136,11 +136,9 @@ fn citations(text: &str) -> BTreeSet<Citation> {
 
 /// The numbers a theory text defines: one per anchor `<a id="m14"></a>`.
 fn defined(theory: &str) -> BTreeSet<Citation> {
-    theory
-        .split("<a id=\"")
-        .skip(1)
-        .filter_map(|rest| {
-            let id = &rest[..rest.find('"')?];
+    anchor_ids(theory)
+        .iter()
+        .filter_map(|id| {
             let kind = match id.chars().next()? {
                 'm' => Kind::Equation,
                 'f' => Kind::Paper,
@@ -251,6 +249,72 @@ fn every_citation_is_defined_in_the_theory_reference() {
         "cited but not defined by an anchor <a id=\"…\"> in {THEORY}:\n{}",
         undefined.join("\n")
     );
+}
+
+/// The anchors that links to `crate::theory…#id` point to, as `(document, id)`: `docs/theory.md` for
+/// `crate::theory#id`, `docs/peer_scene.md` for `crate::theory::peer_scene#id`.
+fn theory_links(text: &str) -> Vec<(&'static str, String)> {
+    text.match_indices("crate::theory")
+        .filter_map(|(at, prefix)| {
+            let rest = &text[at + prefix.len()..];
+            let (document, rest) = match rest.strip_prefix("::peer_scene") {
+                Some(rest) => ("docs/peer_scene.md", rest),
+                None => (THEORY, rest),
+            };
+            let id: String = rest
+                .strip_prefix('#')?
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '-')
+                .collect();
+            Some((document, id))
+        })
+        .collect()
+}
+
+/// The ids of the HTML anchors `<a id="…">` of a document.
+fn anchor_ids(document: &str) -> BTreeSet<String> {
+    document
+        .split("<a id=\"")
+        .skip(1)
+        .filter_map(|rest| rest.split_once('"').map(|(id, _)| id.to_owned()))
+        .collect()
+}
+
+#[test]
+fn link_scanner_names_the_document_and_the_anchor() {
+    let links = theory_links(
+        "[\\[M8\\]](crate::theory#m8), [A](crate::theory::peer_scene#variant-a), [`crate::theory`]",
+    );
+    assert_eq!(
+        links,
+        [
+            (THEORY, "m8".to_owned()),
+            ("docs/peer_scene.md", "variant-a".to_owned())
+        ]
+    );
+}
+
+#[test]
+fn every_link_into_the_theory_lands_on_an_anchor() {
+    let anchors = |document: &str| {
+        let path = repository().join(document);
+        anchor_ids(&fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
+    };
+    let (theory, peer_scene) = (anchors(THEORY), anchors("docs/peer_scene.md"));
+    let mut dangling = Vec::new();
+    for (file, text) in scanned_files() {
+        for (document, id) in theory_links(&text) {
+            let ids = if document == THEORY {
+                &theory
+            } else {
+                &peer_scene
+            };
+            if !ids.contains(&id) {
+                dangling.push(format!("{file}: #{id} is not an anchor of {document}"));
+            }
+        }
+    }
+    assert!(dangling.is_empty(), "{}", dangling.join("\n"));
 }
 
 /// Names of documents that are not in the repository: a reader who meets one has nothing to open.
