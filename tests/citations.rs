@@ -1,5 +1,6 @@
-//! Every citation in the code, the docs and the scenario files resolves in the crate's theory reference (`docs/theory.md`, the module
-//! `servostack::theory`), and nothing sends the reader to a document outside the repository.
+//! Every citation in the code, the docs and the scenario files resolves in the crate's theory reference
+//! (`docs/theory.md`, the module `servostack::theory`), every link into it lands on an anchor, and nothing sends the
+//! reader to a document outside the repository.
 //!
 //! Citations take three forms: the crate's equations `[M14]` (written `\[M14\]` in doc comments), the paper's
 //! equations `(F16)`, and the decisions `D7`. A range such as `\[M16\]–\[M21\]` or `D3–D7` cites every number in it.
