@@ -1,4 +1,4 @@
-//! Visual features from four points: the paper's four tasks with their exact interaction matrices (MATH §7).
+//! Visual features from four points: the paper's four tasks with their exact interaction matrices (theory §7).
 //!
 //! Run with `cargo bench --bench features`.
 
@@ -11,7 +11,7 @@ use servostack::feature::{
 use servostack::target::TargetPlane;
 use std::hint::black_box;
 
-/// The 0.2 m × 0.1 m rectangle of PEER_SCENE seen from `c_from_o`: image points and plane.
+/// The 0.2 m × 0.1 m rectangle of the peer scene (docs/peer_scene.md) seen from `c_from_o`: image points and plane.
 fn project(c_from_o: &Isometry3<f64>) -> ([ImagePoint; 4], TargetPlane) {
     let corners = [(-0.1, -0.05), (0.1, -0.05), (0.1, 0.05), (-0.1, 0.05)];
     let points = corners.map(|(x, y)| {

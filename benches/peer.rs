@@ -1,4 +1,4 @@
-//! servostack on the peer scene of PEER_SCENE.md, with ViSP's timing protocol, for a side-by-side comparison.
+//! servostack on the peer scene (docs/peer_scene.md, `servostack::theory::peer_scene`), with ViSP's timing protocol, for a side-by-side comparison.
 //!
 //! Per variant (A points, B moments, C points + joint limits + continuity): one untimed warm-up episode, then
 //! [`EPISODES`] episodes of [`ITERATIONS`] iterations, each restarting at `q0`, `t = 0` (the reset is not timed);

@@ -1,4 +1,4 @@
-//! The paper's four runs on the reference scenario (MATH §9, D12): classical servoing, the stack, the stack with
+//! The paper's four runs on the reference scenario (theory §9, D12): classical servoing, the stack, the stack with
 //! projected-gradient avoidance, and the full method with the stack controller. Prints a table and writes the figures
 //! (PNG and SVG) and `summary.json`.
 //!

@@ -1,4 +1,4 @@
-//! Runs the four runs of MATH §9 on any scenario file and writes the same outputs as `paper_experiment`.
+//! Runs the four runs of theory §9 on any scenario file and writes the same outputs as `paper_experiment`.
 //!
 //! `cargo run --release --example run_scenario -- SCENARIO.toml [--out DIR]` (default DIR: `target/<scenario name>`).
 //! Robots with 6 or 7 joints are supported.

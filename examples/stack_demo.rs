@@ -66,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let stack_velocity = workspace.stack_solution().velocity().norm();
         q += velocity * dt;
         change = StackChange::Unchanged;
-        // Push the next task once the stack has settled and the transition has died out (MATH D5).
+        // Push the next task once the stack has settled and the transition has died out (theory D5).
         let transition_over = time - last_change_time >= 5.0 / law.transition_gain();
         if order.len() < tasks.len() && stack_velocity < settled && transition_over {
             order.push(order.len());

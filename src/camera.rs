@@ -1,4 +1,4 @@
-//! Pinhole camera: intrinsics, pixel ↔ normalised coordinates, projection of 3-D points (MATH §7.1, §8).
+//! Pinhole camera: intrinsics, pixel ↔ normalised coordinates, projection of 3-D points ([theory §7.1](crate::theory#s7-1), [§8](crate::theory#s8)).
 //!
 //! Frames: the camera frame `c` has z forward along the optical axis, x right, y down. Projection gives normalised
 //! image coordinates `x = X/Z`, `y = Y/Z` (metric, not pixels) and the depth `Z` (m) of each point.
@@ -67,7 +67,7 @@ pub enum CameraError {
 
 /// Pinhole intrinsics in pixels: focal lengths `fx`, `fy`, principal point `(cx, cy)`, image size `width × height`.
 ///
-/// A pixel `(u, v)` and the normalised coordinates `(x, y)` of MATH §7.1 are related by `u = cx + fx x`,
+/// A pixel `(u, v)` and the normalised coordinates `(x, y)` of [theory §7.1](crate::theory#s7-1) are related by `u = cx + fx x`,
 /// `v = cy + fy y` (no distortion).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CameraIntrinsics {
@@ -166,7 +166,7 @@ impl CameraIntrinsics {
     }
 }
 
-/// Projects a point given in the camera frame (m): `(X/Z, Y/Z, Z)` (MATH §7.1).
+/// Projects a point given in the camera frame (m): `(X/Z, Y/Z, Z)` ([theory §7.1](crate::theory#s7-1)).
 ///
 /// # Errors
 /// [`CameraError::NonFinite`] for a non-finite point, [`CameraError::PointBehindCamera`] (with `index` 0) when
@@ -222,7 +222,7 @@ pub(crate) fn is_finite_pose(pose: &Isometry3<f64>) -> bool {
 }
 
 /// An eye-in-hand camera: rigidly mounted on the end effector at `e_from_c` (ViSP `eMc`), with its twist transform
-/// `c_v_e = twist_transform(e_from_c⁻¹)` (ViSP `cVe`, MATH \[M43\]) computed once.
+/// `c_v_e = twist_transform(e_from_c⁻¹)` (ViSP `cVe`, [\[M43\]](crate::theory#m43)) computed once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EyeInHand {
     e_from_c: Isometry3<f64>,
@@ -252,7 +252,7 @@ impl EyeInHand {
         &self.e_from_c
     }
 
-    /// `c_v_e` (ViSP `cVe`, MATH \[M43\]): maps an end-effector twist in `e` to the camera twist in `c`.
+    /// `c_v_e` (ViSP `cVe`, [\[M43\]](crate::theory#m43)): maps an end-effector twist in `e` to the camera twist in `c`.
     pub fn c_v_e(&self) -> &TwistTransform {
         &self.c_v_e
     }
@@ -262,7 +262,7 @@ impl EyeInHand {
         base_from_tip * self.e_from_c
     }
 
-    /// The camera Jacobian `cVe · eJe` (MATH \[M42\] without the interaction matrix): maps `q̇` to the camera twist
+    /// The camera Jacobian `cVe · eJe` ([\[M42\]](crate::theory#m42) without the interaction matrix): maps `q̇` to the camera twist
     /// `(v, ω)` in the camera frame.
     pub fn camera_jacobian<const N: usize>(
         &self,

@@ -1,4 +1,4 @@
-//! The transition term that keeps the joint velocity continuous when the stack changes (MATH §3, \[M11\]–\[M15\], D1).
+//! The transition term that keeps the joint velocity continuous when the stack changes ([theory §3](crate::theory#s3), [\[M11\]](crate::theory#m11)–[\[M15\]](crate::theory#m15), [D1](crate::theory#d1)).
 //!
 //! Let `u(t)` be the control law of the current stack (the stack velocity plus the avoidance term, [`crate::law`]).
 //! When the stack is modified (a task pushed or removed) at time `τ`, `u` jumps. The non-homogeneous first-order law of
@@ -9,7 +9,7 @@
 //! ```
 //!
 //! so `q̇(τ⁺) = q̇(τ⁻)` exactly, whatever the ranks of the old and new stacks, while the convergence gains `λ_i` and the
-//! transition length `1/μ` stay decoupled. `μ` (s⁻¹) defaults to `10 · max_i λ_i` (MATH D1, the paper's `μ = 10 λ`).
+//! transition length `1/μ` stay decoupled. `μ` (s⁻¹) defaults to `10 · max_i λ_i` ([D1](crate::theory#d1), the paper's `μ = 10 λ`).
 //! This is also ViSP's `vpServo::computeControlLaw(t, e_dot_init)`, for a whole stack instead of one task.
 
 use crate::math::JointVector;
@@ -62,7 +62,7 @@ impl<const N: usize> Transition<N> {
         (-mu * (time - self.switch_time)).exp()
     }
 
-    /// The blended velocity `u(t) + e^{−μ(t−τ)} (q̇(τ⁻) − u(τ))` of D1, written into `out`; returns the decay factor
+    /// The blended velocity `u(t) + e^{−μ(t−τ)} (q̇(τ⁻) − u(τ))` of [D1](crate::theory#d1), written into `out`; returns the decay factor
     /// it used ([`Self::decay`]).
     pub fn blend(&self, mu: f64, time: f64, law: &JointVector<N>, out: &mut JointVector<N>) -> f64 {
         let decay = self.decay(mu, time);

@@ -1,4 +1,4 @@
-//! The complete control law: task stack, projected-gradient avoidance and continuity (MATH \[M18\], (F19), D1).
+//! The complete control law: task stack, projected-gradient avoidance and continuity ([\[M18\]](crate::theory#m18), [(F19)](crate::theory#f19), [D1](crate::theory#d1)).
 //!
 //! ```text
 //! u(t)  = q̇_n(t) − κ P^A_n ∇h(q)                                   (stack [M14] + avoidance [M18])
@@ -91,7 +91,7 @@ pub struct ControlLaw {
 }
 
 impl ControlLaw {
-    /// The ratio `μ / max_i λ_i` of the paper (MATH §3, D1).
+    /// The ratio `μ / max_i λ_i` of the paper ([theory §3](crate::theory#s3), [D1](crate::theory#d1)).
     pub const TRANSITION_TO_TASK_GAIN_RATIO: f64 = 10.0;
 
     /// A law with transition gain `μ` (s⁻¹, > 0) and avoidance gain `κ` (s⁻¹, ≥ 0; 0 disables avoidance), and the
@@ -103,7 +103,7 @@ impl ControlLaw {
         Self::with_stack_parameters(StackParameters::default(), transition_gain, avoidance_gain)
     }
 
-    /// A law with `μ = 10 · max_i λ_i` over `tasks` (MATH D1) and avoidance gain `κ`.
+    /// A law with `μ = 10 · max_i λ_i` over `tasks` ([D1](crate::theory#d1)) and avoidance gain `κ`.
     ///
     /// # Errors
     /// As [`ControlLaw::new`]; an empty task list gives [`LawError::InvalidTransitionGain`] with `μ = 0`.
@@ -181,7 +181,7 @@ pub struct ControlOutput<const N: usize> {
 }
 
 impl<const N: usize> ControlOutput<N> {
-    /// The joint velocity to send, `q̇(t)` (D1): finite by construction.
+    /// The joint velocity to send, `q̇(t)` ([D1](crate::theory#d1)): finite by construction.
     pub fn velocity(&self) -> &JointVector<N> {
         &self.velocity
     }
@@ -270,7 +270,7 @@ impl<const N: usize> ControlWorkspace<N> {
     }
 }
 
-/// One step of the control law D1/\[M18\] at time `time` (s) for the configuration `q`, the evaluated `tasks` stacked in
+/// One step of the control law [D1](crate::theory#d1)/[\[M18\]](crate::theory#m18) at time `time` (s) for the configuration `q`, the evaluated `tasks` stacked in
 /// `order` (highest priority first) and an optional avoidance `cost`.
 ///
 /// # Errors

@@ -1,6 +1,6 @@
 //! Conventions, type aliases and the small geometric helpers every module shares.
 //!
-//! These conventions are written once, here, and followed by the whole crate (DESIGN.md, principle 7):
+//! These conventions are written once, here, and followed by the whole crate (the [theory reference](crate::theory#s0) states them with the equations):
 //!
 //! * **Units**: SI everywhere — metres, radians, seconds. Velocities are m/s and rad/s. Pixels appear only in
 //!   [`crate::camera`]; every other module works with normalised image coordinates `x = X/Z`, `y = Y/Z`.
@@ -10,7 +10,7 @@
 //!   its coordinates in frame `a`: `p_a = a_from_b * p_b`. Composition reads right to left:
 //!   `a_from_c = a_from_b * b_from_c`.
 //! * **Twist transforms**: `a_v_b` (ViSP `aVb`, a 6×6 [`TwistTransform`]) maps a twist of a rigid body expressed in frame
-//!   `b` to the same rigid-body motion expressed in frame `a`: `v_a = a_v_b · v_b` (MATH \[M43\]).
+//!   `b` to the same rigid-body motion expressed in frame `a`: `v_a = a_v_b · v_b` ([\[M43\]](crate::theory#m43)).
 //! * **Frames**: `f` or `base` (robot base), `e` (end effector), `c` (camera: z forward along the optical axis, x right,
 //!   y down), `o` (object / target), `cd` (desired camera pose).
 //! * **Joint space** is statically sized: `N` joints, [`JointVector<N>`]. Task spaces have a run-time number of rows.
@@ -41,7 +41,7 @@ pub type JointMatrix<const N: usize> = SMatrix<f64, N, N>;
 /// A rigid-body velocity screw `(v, ω)`: linear velocity (m/s) first, then angular velocity (rad/s).
 pub type Twist = Vector6<f64>;
 
-/// A 6 × 6 twist transform `a_v_b` (ViSP `aVb`), MATH \[M43\].
+/// A 6 × 6 twist transform `a_v_b` (ViSP `aVb`), [\[M43\]](crate::theory#m43).
 pub type TwistTransform = Matrix6<f64>;
 
 /// A 6 × `N` kinematic Jacobian: maps joint velocities to a twist `(v, ω)` in some frame.
@@ -52,7 +52,7 @@ pub fn skew(t: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -t.z, t.y, t.z, 0.0, -t.x, -t.y, t.x, 0.0)
 }
 
-/// Twist transform `a_v_b` of a transform `a_from_b` (MATH \[M43\]):
+/// Twist transform `a_v_b` of a transform `a_from_b` ([\[M43\]](crate::theory#m43)):
 ///
 /// ```text
 /// a_v_b = [ aRb   [atb]× aRb ]
@@ -61,7 +61,7 @@ pub fn skew(t: &Vector3<f64>) -> Matrix3<f64> {
 ///
 /// so that the twist `(v, ω)` of a rigid body expressed (and taken at the origin of) frame `b` becomes the same
 /// motion expressed at the origin of frame `a`: `v_a = a_v_b · v_b`. With `a_from_b = c_from_e` this is the `cVe` of
-/// MATH \[M42\].
+/// [\[M42\]](crate::theory#m42).
 pub fn twist_transform(a_from_b: &Isometry3<f64>) -> TwistTransform {
     let rotation = a_from_b.rotation.to_rotation_matrix().into_inner();
     let translation = a_from_b.translation.vector;
@@ -73,7 +73,7 @@ pub fn twist_transform(a_from_b: &Isometry3<f64>) -> TwistTransform {
     out
 }
 
-/// Wraps an angle (rad) into `(−π, π]`, the convention for angular feature errors (MATH D8).
+/// Wraps an angle (rad) into `(−π, π]`, the convention for angular feature errors ([D8](crate::theory#d8)).
 pub fn wrap_angle(angle: f64) -> f64 {
     let two_pi = 2.0 * std::f64::consts::PI;
     let wrapped = angle - two_pi * (angle / two_pi).round();

@@ -1,4 +1,4 @@
-//! The task stack: strict priorities by recursive null-space projection (MATH §2, \[M14\], \[M8\], (F6)–(F8), (F16)).
+//! The task stack: strict priorities by recursive null-space projection ([theory §2](crate::theory#s2), [\[M14\]](crate::theory#m14), [\[M8\]](crate::theory#m8), [(F6)](crate::theory#f6)–[(F8)](crate::theory#f8), [(F16)](crate::theory#f16)).
 //!
 //! For an ordered stack of tasks `(e_1, …, e_n)` (index 1 has the highest priority), each with its own gain, the joint
 //! velocity that realises `ė_i = −λ_i e_i` as well as the higher levels allow is built level by level:
@@ -11,15 +11,15 @@
 //! ```
 //!
 //! `P^A_n` is the orthogonal projector onto the kernel of the augmented Jacobian `[J_1; …; J_n]`: the directions left
-//! free by the whole stack, where avoidance acts ([`crate::law`], MATH \[M18\]). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
+//! free by the whole stack, where avoidance acts ([`crate::law`], [\[M18\]](crate::theory#m18)). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
 //! a lower level never changes `J_k q̇` for a higher level `k` (up to the rank truncation).
 //!
 //! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]); the velocity term may use
-//! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` (MATH D2). The projector is
-//! re-symmetrised after each update (MATH §2.1.3). The rank threshold of level `i` is relative to the task's own scale
+//! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` ([D2](crate::theory#d2)). The projector is
+//! re-symmetrised after each update ([theory §2.1.3](crate::theory#s2-1-3)). The rank threshold of level `i` is relative to the task's own scale
 //! `‖J_i‖_F`, not to `σ_max(J̃_i)`: a level whose `J̃_i` is tiny compared with `J_i` conflicts with the higher levels
 //! (algorithmic singularity), and its tiny directions must be dropped, not inverted. Per-level [`LevelDiagnostics`] report the rank of `J̃_i`, its
-//! smallest kept singular value, and whether the level is fully achievable (`rank J̃_i = m_i`, MATH §2.1.5).
+//! smallest kept singular value, and whether the level is fully achievable (`rank J̃_i = m_i`, [theory §2.1.5](crate::theory#s2-1-5)).
 //!
 //! ```
 //! use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
@@ -98,7 +98,7 @@ pub enum StackError {
     Parameters(LinalgError),
 }
 
-/// How each level is inverted (MATH §2.1, D2).
+/// How each level is inverted ([theory §2.1](crate::theory#s2-1), [D2](crate::theory#d2)).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct StackParameters {
     /// Which singular values of `J̃_i` count (relative threshold 1e−6 and an absolute floor by default).
@@ -131,7 +131,7 @@ pub struct LevelDiagnostics {
     /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0).
     pub smallest_kept_singular_value: Option<f64>,
     /// `true` when `rank J̃_i = m_i`: every velocity the task asks for is realisable without disturbing the higher
-    /// levels (MATH §2.1.5). A task with more rows than free joints is never fully achievable.
+    /// levels ([theory §2.1.5](crate::theory#s2-1-5)). A task with more rows than free joints is never fully achievable.
     pub fully_achievable: bool,
 }
 
@@ -144,12 +144,12 @@ pub struct StackSolution<const N: usize> {
 }
 
 impl<const N: usize> StackSolution<N> {
-    /// The stack velocity `q̇_n` of \[M14\] (m/s or rad/s per joint), without transition or avoidance terms.
+    /// The stack velocity `q̇_n` of [\[M14\]](crate::theory#m14) (m/s or rad/s per joint), without transition or avoidance terms.
     pub fn velocity(&self) -> &JointVector<N> {
         &self.velocity
     }
 
-    /// The projector `P^A_n` onto the joint directions left free by the whole stack (\[M8\]).
+    /// The projector `P^A_n` onto the joint directions left free by the whole stack ([\[M8\]](crate::theory#m8)).
     pub fn projector(&self) -> &JointMatrix<N> {
         &self.projector
     }
@@ -205,7 +205,7 @@ impl<const N: usize> StackWorkspace<N> {
     }
 }
 
-/// Solves the stack `order` (indices into `tasks`, highest priority first) by \[M14\] and \[M8\]. Allocation-free when the
+/// Solves the stack `order` (indices into `tasks`, highest priority first) by [\[M14\]](crate::theory#m14) and [\[M8\]](crate::theory#m8). Allocation-free when the
 /// workspace was sized for these tasks. An empty order gives `q̇_n = 0`, `P^A_n = I`.
 ///
 /// # Errors

@@ -1,10 +1,10 @@
-//! Planar target: the rectangle of four points and its plane seen from the camera (MATH §7.1, PEER_SCENE.md).
+//! Planar target: the rectangle of four points and its plane seen from the camera ([theory §7.1](crate::theory#s7-1), [peer scene](crate::theory::peer_scene#scene)).
 
 use crate::camera::{is_finite_pose, MIN_DEPTH};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The target plane in the camera frame, written as `1/Z = A x + B y + C` for the normalised image coordinates
-/// `(x, y)` of any point of the plane (MATH §7.1; ViSP's moment features use the same `A, B, C`). Units: 1/m.
+/// `(x, y)` of any point of the plane ([theory §7.1](crate::theory#s7-1); ViSP's moment features use the same `A, B, C`). Units: 1/m.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TargetPlane {
     /// Coefficient `A` (1/m).
@@ -72,10 +72,10 @@ pub enum TargetError {
     NonFinitePose,
 }
 
-/// A planar rectangle target of four points in the plane `z = 0` of the object frame `o` (PEER_SCENE.md), numbered
+/// A planar rectangle target of four points in the plane `z = 0` of the object frame `o` ([peer scene](crate::theory::peer_scene#scene)), numbered
 /// around the rectangle:
 /// `P0 = (−w/2, −h/2, 0)`, `P1 = (w/2, −h/2, 0)`, `P2 = (w/2, h/2, 0)`, `P3 = (−w/2, h/2, 0)` (m).
-/// The diagonal of MATH D8 runs from `P0` to `P2`.
+/// The diagonal of [D8](crate::theory#d8) runs from `P0` to `P2`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RectangleTarget {
     width: f64,

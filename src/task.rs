@@ -1,9 +1,9 @@
 //! The task abstraction: a task function `e_i` (`m_i` rows), its Jacobian `J_i = ∂e_i/∂q` (`m_i × N`) and its gain
-//! `λ_i` (MATH §0, \[M14\], (F15)).
+//! `λ_i` ([theory §0](crate::theory#s0), [\[M14\]](crate::theory#m14), [(F15)](crate::theory#f15)).
 //!
 //! A [`Task`] evaluates itself, for the current state of the world given as a context `C`, into a [`TaskValue`] that
 //! was sized once (its `m_i` rows) when the task list was built. The stack solve ([`crate::stack`]) reads only
-//! `TaskValue`s, so any source of `(e, J, λ)` plugs in: visual tasks (`J_i = L_i cVe eJe`, MATH \[M42\]), or the synthetic
+//! `TaskValue`s, so any source of `(e, J, λ)` plugs in: visual tasks (`J_i = L_i cVe eJe`, [\[M42\]](crate::theory#m42)), or the synthetic
 //! tasks of this module — a [`ConstantTask`] with given matrices, and a [`LinearTask`] `e = A (q − q*)` — that make the
 //! stack testable without robots or cameras. A task may have more rows than the robot has joints (a four-point task has
 //! 8).
@@ -90,7 +90,7 @@ pub enum TaskError {
 }
 
 /// The evaluated task: error `e_i` (`m_i`), Jacobian `J_i` (`m_i × N`) and gain `λ_i` (s⁻¹), plus, for a sensor-based
-/// task, its interaction matrix `L_i` (`m_i × 6`, with `J_i = L_i W J_q`, MATH \[M42\]; zero for joint-space tasks). Its
+/// task, its interaction matrix `L_i` (`m_i × 6`, with `J_i = L_i W J_q`, [\[M42\]](crate::theory#m42); zero for joint-space tasks). Its
 /// storage is allocated once, by [`TaskValue::new`] or [`TaskValue::for_task`]; evaluating a task only overwrites it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskValue<const N: usize> {
@@ -259,7 +259,7 @@ pub trait Task<const N: usize, C: ?Sized> {
     fn name(&self) -> &str;
     /// The number of rows `m_i` of the task function.
     fn rows(&self) -> usize;
-    /// The convergence gain `λ_i` (s⁻¹) of `ė_i = −λ_i e_i` (MATH (F15)).
+    /// The convergence gain `λ_i` (s⁻¹) of `ė_i = −λ_i e_i` ([(F15)](crate::theory#f15)).
     fn gain(&self) -> f64;
     /// Writes `e_i` and `J_i` for the state `context` into `out` (sized by [`TaskValue::for_task`]).
     ///

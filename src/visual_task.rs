@@ -1,5 +1,5 @@
 //! Visual tasks: a visual feature, its desired value, a gain and an interaction source, giving the task function
-//! `e_i = s_i − s_i*` (MATH (F28)) and its Jacobian for an eye-in-hand camera
+//! `e_i = s_i − s_i*` ([(F28)](crate::theory#f28)) and its Jacobian for an eye-in-hand camera
 //!
 //! ```text
 //! [M42]  J_i = L_{s_i} · cVe · eJe(q)          (m_i × 6)(6 × 6)(6 × N)
@@ -10,12 +10,12 @@
 //! (computed once per control period by the robot and camera modules). Evaluation writes `e_i`, `L_i` and `J_i` into
 //! the task's preallocated [`TaskValue`] without allocating.
 //!
-//! The interaction source (MATH D10) picks where `L_i` is evaluated: [`InteractionSource::Exact`] (default) and
+//! The interaction source ([D10](crate::theory#d10)) picks where `L_i` is evaluated: [`InteractionSource::Exact`] (default) and
 //! [`InteractionSource::PaperApprox`] on the current observation; [`InteractionSource::Desired`] once, at construction,
 //! on the desired observation.
 //!
-//! [`paper_tasks`] builds the paper's four tasks (centroid, diagonal angle, `a_n`, `P_x`/`P_y`, §9) and
-//! [`classical_task`] the full six-row task of the classical law (§7.7), each in one call.
+//! [`paper_tasks`] builds the paper's four tasks (centroid, diagonal angle, `a_n`, `P_x`/`P_y`, [§9](crate::theory#s9)) and
+//! [`classical_task`] the full six-row task of the classical law ([§7.7](crate::theory#s7-7)), each in one call.
 
 use crate::feature::{
     AreaNormalization, BoxedFeature, Centroid, DiagonalAngle, Feature, FeatureError, FeatureSet,
@@ -25,7 +25,7 @@ use crate::math::{wrap_angle, KinematicJacobian};
 use crate::task::{InteractionMatrix, Task, TaskError, TaskValue};
 use nalgebra::DVector;
 
-/// The names of the paper's four tasks, in priority order (MATH §9): e1, e2, e3, e4.
+/// The names of the paper's four tasks, in priority order ([theory §9](crate::theory#s9)): e1, e2, e3, e4.
 pub const PAPER_TASK_NAMES: [&str; 4] = ["centroid", "angle", "area", "third_order"];
 
 /// The name of the classical full task.
@@ -40,7 +40,7 @@ pub struct VisualContext<'a, const N: usize> {
     pub camera_jacobian: &'a KinematicJacobian<N>,
 }
 
-/// A visual task: `e = s − s*` with angle rows wrapped into `(−π, π]` (D8), `J = L cVe eJe` \[M42\].
+/// A visual task: `e = s − s*` with angle rows wrapped into `(−π, π]` ([D8](crate::theory#d8)), `J = L cVe eJe` [\[M42\]](crate::theory#m42).
 pub struct VisualTask {
     name: String,
     feature: BoxedFeature,
@@ -185,13 +185,13 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
     }
 }
 
-/// The paper's four tasks in priority order (MATH §9): e1 centroid (2 rows, [`Centroid`] with a-priori depth
-/// `a_priori_depth` for [`InteractionSource::PaperApprox`]), e2 diagonal angle from point 0 to point 2 (1 row, D8),
-/// e3 `a_n` (1 row, with desired depth `desired_depth`, MATH \[M37\]), e4 `P_x, P_y` (2 rows, \[M40\]). Named as
+/// The paper's four tasks in priority order ([theory §9](crate::theory#s9)): e1 centroid (2 rows, [`Centroid`] with a-priori depth
+/// `a_priori_depth` for [`InteractionSource::PaperApprox`]), e2 diagonal angle from point 0 to point 2 (1 row, [D8](crate::theory#d8)),
+/// e3 `a_n` (1 row, with desired depth `desired_depth`, [\[M37\]](crate::theory#m37)), e4 `P_x, P_y` (2 rows, [\[M40\]](crate::theory#m40)). Named as
 /// [`PAPER_TASK_NAMES`]. `gains` are the `λ_i` (s⁻¹).
 ///
 /// # Errors
-/// Invalid depths or gains, or features undefined on the desired observation (e.g. a square target seen head-on, D9).
+/// Invalid depths or gains, or features undefined on the desired observation (e.g. a square target seen head-on, [D9](crate::theory#d9)).
 pub fn paper_tasks(
     desired: &Observation<'_>,
     desired_depth: f64,
@@ -208,7 +208,7 @@ pub fn paper_tasks(
         .collect()
 }
 
-/// The classical task (MATH §7.7): `s = (x_g, y_g, α, a_n, P_x, P_y)` in one level, named
+/// The classical task ([theory §7.7](crate::theory#s7-7)): `s = (x_g, y_g, α, a_n, P_x, P_y)` in one level, named
 /// [`CLASSICAL_TASK_NAME`], with gain `gain` (s⁻¹).
 ///
 /// # Errors

@@ -1,4 +1,4 @@
-//! The real-time path allocates nothing on the heap (DESIGN principle 2): the steady-state control step, the
+//! The real-time path allocates nothing on the heap (the model/workspace split): the steady-state control step, the
 //! features, the kinematics, the camera and the projection. Counted per thread by a global allocator.
 
 #[path = "common/counting_allocator.rs"]

@@ -74,7 +74,7 @@ fn field_of_view_with_margin() {
     assert!(!cam.all_in_field_of_view(&points, 50.0));
 }
 
-/// PEER_SCENE.md: the 0.2 × 0.1 m rectangle, fronto-parallel at 0.5 m, is seen at (±0.2, ±0.1), plane (0, 0, 2).
+/// The peer scene (docs/peer_scene.md): the 0.2 × 0.1 m rectangle, fronto-parallel at 0.5 m, is seen at (±0.2, ±0.1), plane (0, 0, 2).
 #[test]
 fn peer_scene_desired_image() {
     let target = RectangleTarget::new(0.2, 0.1).unwrap();

@@ -1,4 +1,4 @@
-//! The stack controller on synthetic joint-space tasks (MATH §6, D3–D7): the task that drives a joint into its limit is
+//! The stack controller on synthetic joint-space tasks (theory §6, D3–D7): the task that drives a joint into its limit is
 //! the one removed, the limit is not hit, the task comes back, and the velocity is continuous at every event.
 
 use servostack::avoidance::{Cost, CostError, JointLimits};
@@ -388,7 +388,7 @@ fn invalid_parameters_and_task_count() {
     );
 }
 
-/// With default parameters (`removal_threshold: None`) the threshold comes from the cost (MATH D6: the joint-limit
+/// With default parameters (`removal_threshold: None`) the threshold comes from the cost (theory D6: the joint-limit
 /// half-band cost): the blocking task is still removed, with that threshold, and the limit not hit.
 #[test]
 fn default_parameters_take_the_threshold_from_the_cost() {

@@ -1,5 +1,5 @@
 //! The stack controller's step with the composed avoidance cost (joint limits, three obstacles, visibility) allocates
-//! nothing while the obstacle cost is active (DESIGN principle 2).
+//! nothing while the obstacle cost is active (the model/workspace split).
 
 #[path = "common/counting_allocator.rs"]
 mod counting_allocator;

@@ -1,4 +1,4 @@
-//! The paper's claim, on the shipped reference scenario (MATH §9, D12): the classical law and the push-only stacks fail
+//! The paper's claim, on the shipped reference scenario (theory §9, D12): the classical law and the push-only stacks fail
 //! on a joint limit, each at the stage the paper reports, and the full method converges within the limits after
 //! removing the a_n task during the fourth task and putting it back. Asserted from the scenario file, with the default
 //! exact interaction matrices.

@@ -1,5 +1,5 @@
 //! Kinematics of the built-in robots: Jacobians against finite differences of the forward kinematics, the Afma6
-//! against PEER_SCENE.md's closed forms, the UR5e against its DH product, cVe against camera motion.
+//! against the peer scene's closed forms (docs/peer_scene.md), the UR5e against its DH product, cVe against camera motion.
 
 use approx::assert_relative_eq;
 use nalgebra::{
@@ -174,7 +174,7 @@ proptest! {
         check_point_jacobians(&afma6, &config(&afma6, &u[..6]), &local);
     }
 
-    /// PEER_SCENE.md's closed forms with g = 0, for the URDF file and the built-in constructor.
+    /// The peer scene's closed forms with g = 0, for the URDF file and the built-in constructor.
     #[test]
     fn afma6_matches_the_closed_form(u in unit_samples(6)) {
         let from_file = SerialChain::<6>::from_urdf_file(
@@ -218,7 +218,7 @@ proptest! {
     }
 }
 
-/// ViSP's Afma6 `fMe` and `eJe` (PEER_SCENE.md), coded from the closed forms, with coupling `g`.
+/// ViSP's Afma6 `fMe` and `eJe` (docs/peer_scene.md), coded from the closed forms, with coupling `g`.
 fn afma6_closed_form(q: &JointVector<6>, g: f64) -> (Isometry3<f64>, KinematicJacobian<6>) {
     let l = AFMA6_WRIST_OFFSET;
     let (s1, c1) = q[3].sin_cos();

@@ -1,5 +1,5 @@
 //! Properties of the task stack, the continuity term and the projected-gradient avoidance on random stacks
-//! (MATH \[M8\], \[M14\], \[M15\]/D1, \[M18\]), for N = 6 and N = 7.
+//! (theory \[M8\], \[M14\], \[M15\]/D1, \[M18\]), for N = 6 and N = 7.
 
 use nalgebra::{DMatrix, DVector, Dyn, OMatrix};
 use proptest::prelude::*;

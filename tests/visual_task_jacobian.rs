@@ -1,4 +1,4 @@
-//! The task Jacobian of visual tasks on a real robot: `J = L cVe eJe` (MATH \[M42\]) matches central finite differences
+//! The task Jacobian of visual tasks on a real robot: `J = L cVe eJe` (theory \[M42\]) matches central finite differences
 //! of the task error `e(q) = s(q) − s*` through the whole chain (kinematics, camera mount, projection, features).
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -12,7 +12,7 @@ use servostack::target::RectangleTarget;
 use servostack::task::{Task, TaskValue};
 use servostack::visual_task::{classical_task, paper_tasks, VisualContext, VisualTask};
 
-/// The peer scene of PEER_SCENE.md with a tilted desired pose: Afma6, 0.2 × 0.1 m target 0.5 m ahead at q_d.
+/// The peer scene (docs/peer_scene.md) with a tilted desired pose: Afma6, 0.2 × 0.1 m target 0.5 m ahead at q_d.
 fn scene() -> (Scene<6>, Isometry3<f64>, JointVector<6>) {
     let robot = builtin::afma6().unwrap();
     let desired_q = JointVector::<6>::new(0.0, 0.0, 0.0, 0.0, 0.3, 0.0);
@@ -106,7 +106,7 @@ fn errors_vanish_at_the_desired_pose_where_desired_and_exact_jacobians_agree() {
     assert!((a.jacobian() - b.jacobian()).amax() < 1e-12);
 }
 
-/// A square target seen head-on makes the third-order features undefined (MATH D9): building the paper's tasks fails
+/// A square target seen head-on makes the third-order features undefined (theory D9): building the paper's tasks fails
 /// with the feature's own error, values included.
 #[test]
 fn square_seen_head_on_is_a_feature_error() {

@@ -1,4 +1,4 @@
-//! The closed visual-servoing loop on the Afma6 peer scene (PEER_SCENE.md), shared by `benches/peer.rs`,
+//! The closed visual-servoing loop on the Afma6 peer scene (docs/peer_scene.md), shared by `benches/peer.rs`,
 //! `benches/control_loop.rs` and the zero-allocation test (`tests/allocation.rs`), so that what is timed is exactly
 //! what is proven allocation-free.
 //!
@@ -38,7 +38,7 @@ pub const DESIRED_Q: [f64; 6] = [0.0, 0.0, 0.0, 0.0, 0.3, 0.0];
 /// `q0 − q_d`.
 pub const START_OFFSET: [f64; 6] = [0.05, -0.04, -0.10, 0.25, -0.18, 0.12];
 
-/// The three variants of PEER_SCENE.md.
+/// The three variants of the peer scene (docs/peer_scene.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Variant {
     /// Four points (8 rows), `q̇ = −λ J⁺ e`.

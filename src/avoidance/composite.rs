@@ -1,4 +1,4 @@
-//! A sum of costs: `h(q) = Σ_k h_k(q)`, `∇h = Σ_k ∇h_k` (MATH §4: the projected gradient of the sum pushes away from
+//! A sum of costs: `h(q) = Σ_k h_k(q)`, `∇h = Σ_k ∇h_k` ([theory §4](crate::theory#s4): the projected gradient of the sum pushes away from
 //! every danger at once; a sum of C¹ potentials is C¹).
 
 use super::{Cost, CostError};

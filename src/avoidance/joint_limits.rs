@@ -1,4 +1,4 @@
-//! The joint-limit cost of Chaumette & Marchand (MATH §5, \[M19\]–\[M21\], (F37)–(F38)).
+//! The joint-limit cost of Chaumette & Marchand ([theory §5](crate::theory#s5), [\[M19\]](crate::theory#m19)–[\[M21\]](crate::theory#m21), [(F37)](crate::theory#f37)–[(F38)](crate::theory#f38)).
 //!
 //! Per joint `i`, with range `Δq_i = q_i^max − q_i^min` and activation ratio `ρ ∈ (0, 1/2)` (default 0.1):
 //!
@@ -15,7 +15,7 @@
 use super::{dead_band, Cost, CostError};
 use crate::math::{first_non_finite, JointVector};
 
-/// Joint limits and the cost \[M20\] that keeps a configuration away from them.
+/// Joint limits and the cost [\[M20\]](crate::theory#m20) that keeps a configuration away from them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointLimits<const N: usize> {
     lower: JointVector<N>,
@@ -24,7 +24,7 @@ pub struct JointLimits<const N: usize> {
 }
 
 impl<const N: usize> JointLimits<N> {
-    /// The activation ratio of the paper and of ViSP's 2005 Afma6 model (MATH §5).
+    /// The activation ratio of the paper and of ViSP's 2005 Afma6 model ([theory §5](crate::theory#s5)).
     pub const DEFAULT_ACTIVATION_RATIO: f64 = 0.1;
 
     /// Limits `lower < upper` (m or rad per joint) with activation ratio `rho ∈ (0, 1/2)`.
@@ -68,13 +68,13 @@ impl<const N: usize> JointLimits<N> {
         self.upper[joint] - self.lower[joint]
     }
 
-    /// The activation thresholds `(q̃^min, q̃^max)` of \[M19\].
+    /// The activation thresholds `(q̃^min, q̃^max)` of [\[M19\]](crate::theory#m19).
     pub fn activation_thresholds(&self) -> (JointVector<N>, JointVector<N>) {
         let band = (self.upper - self.lower) * self.rho;
         (self.lower + band, self.upper - band)
     }
 
-    /// `δ_i` of \[M20\]: how far joint `i` has gone into its activation band (signed, 0 inside the acceptable box).
+    /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the acceptable box).
     fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
         let band = self.rho * self.range(joint);
         dead_band(q[joint], self.lower[joint] + band, self.upper[joint] - band)
@@ -82,19 +82,19 @@ impl<const N: usize> JointLimits<N> {
 
     /// The value of `h` when one joint, `joint`, has gone half-way through its activation band and every other joint is
     /// in the acceptable box: `½ (ρΔq/2)² / Δq = ρ² Δq / 8`. The stack controller's default `h_max` is the smallest of
-    /// these over the joints (MATH D6). `None` for a joint index `≥ N`.
+    /// these over the joints ([D6](crate::theory#d6)). `None` for a joint index `≥ N`.
     pub fn half_band_cost(&self, joint: usize) -> Option<f64> {
         (joint < N).then(|| self.rho * self.rho * self.range(joint) / 8.0)
     }
 
-    /// The default removal threshold `h_max` of MATH D6: the smallest [`Self::half_band_cost`] over the joints.
+    /// The default removal threshold `h_max` of [D6](crate::theory#d6): the smallest [`Self::half_band_cost`] over the joints.
     pub fn default_removal_threshold(&self) -> f64 {
         (0..N)
             .filter_map(|joint| self.half_band_cost(joint))
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// The first joint outside its hard limits `[q^min, q^max]` (MATH D11), or `None`.
+    /// The first joint outside its hard limits `[q^min, q^max]` ([D11](crate::theory#d11)), or `None`.
     pub fn violated_joint(&self, q: &JointVector<N>) -> Option<usize> {
         (0..N).find(|&i| !(self.lower[i] <= q[i] && q[i] <= self.upper[i]))
     }
@@ -119,12 +119,12 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
         "joint_limits"
     }
 
-    /// D6: the cost of one joint half-way through its activation band ([`Self::default_removal_threshold`]).
+    /// [D6](crate::theory#d6): the cost of one joint half-way through its activation band ([`Self::default_removal_threshold`]).
     fn default_removal_threshold(&self) -> Option<f64> {
         Some(JointLimits::default_removal_threshold(self))
     }
 
-    /// \[M20\].
+    /// [\[M20\]](crate::theory#m20).
     fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
         if let Some((joint, value)) = first_non_finite(q) {
             return Err(CostError::NonFiniteConfiguration { joint, value });
@@ -134,7 +134,7 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
             .sum())
     }
 
-    /// \[M20\] and \[M21\].
+    /// [\[M20\]](crate::theory#m20) and [\[M21\]](crate::theory#m21).
     fn value_and_gradient(
         &self,
         q: &JointVector<N>,

@@ -1,14 +1,14 @@
-//! Avoidance by the projected gradient of a cost (MATH §4, \[M16\]–\[M18\], (F17)–(F19)).
+//! Avoidance by the projected gradient of a cost ([theory §4](crate::theory#s4), [\[M16\]](crate::theory#m16)–[\[M18\]](crate::theory#m18), [(F17)](crate::theory#f17)–[(F19)](crate::theory#f19)).
 //!
 //! An "obstacle" is any scalar cost `h(q) ≥ 0` (a potential: zero where the robot is safe, growing towards danger)
 //! with its gradient `∇h = (∂h/∂q)ᵀ`. The avoidance term of the control law ([`crate::law`]) is `−κ P^A_n ∇h`: the
 //! steepest descent of `h`, projected onto the joint directions that the whole task stack leaves free, so that it never
 //! disturbs a stacked task. The stack controller also predicts `h` ahead in time to decide when to remove a task
-//! (MATH §6.2).
+//! ([theory §6.2](crate::theory#s6-2)).
 //!
 //! Costs implement [`Cost`]. This module provides
 //!
-//! * the joint-limit cost of Chaumette & Marchand ([`JointLimits`], MATH \[M19\]–\[M21\]);
+//! * the joint-limit cost of Chaumette & Marchand ([`JointLimits`], [\[M19\]](crate::theory#m19)–[\[M21\]](crate::theory#m21));
 //! * the obstacle cost ([`ObstacleCost`]): link collision shapes (from the URDF `<collision>` elements,
 //!   [`LinkColliders`]) against world obstacles ([`Obstacle`]), zero beyond an influence distance;
 //! * the visibility cost ([`VisibilityCost`]): zero while every target point is inside the image with a margin;
@@ -35,7 +35,7 @@ use crate::robot::RobotError;
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CostError {
-    /// The activation ratio `ρ` of the joint-limit cost must lie in `(0, 1/2)` (MATH \[M19\]).
+    /// The activation ratio `ρ` of the joint-limit cost must lie in `(0, 1/2)` ([\[M19\]](crate::theory#m19)).
     #[error("activation ratio ρ = {rho} must lie in (0, 1/2)")]
     InvalidActivationRatio {
         /// The ratio given.
@@ -149,7 +149,7 @@ pub enum CostError {
     Robot(#[from] RobotError),
 }
 
-/// A differentiable scalar cost `h(q)` on the joint space, minimised by the projected-gradient term (MATH \[M16\]).
+/// A differentiable scalar cost `h(q)` on the joint space, minimised by the projected-gradient term ([\[M16\]](crate::theory#m16)).
 ///
 /// Implementations must be allocation-free and must return an error, never NaN, on bad input.
 pub trait Cost<const N: usize> {
@@ -184,7 +184,7 @@ pub trait Cost<const N: usize> {
         Ok(self.name())
     }
 
-    /// The removal threshold `h_max` the stack controller uses with this cost when none is given (MATH D6), in the
+    /// The removal threshold `h_max` the stack controller uses with this cost when none is given ([D6](crate::theory#d6)), in the
     /// cost's unit; `None` (the default) when the cost has no natural one, and then no task is removed unless a
     /// threshold is set explicitly.
     fn default_removal_threshold(&self) -> Option<f64> {
@@ -220,7 +220,7 @@ impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
 }
 
 /// How far `s` lies beyond the dead band `[low, high]`: `s − high` above, `s − low` below, 0 inside — the `δ` of the
-/// joint-limit cost \[M20\], also used by the visibility cost on image coordinates.
+/// joint-limit cost [\[M20\]](crate::theory#m20), also used by the visibility cost on image coordinates.
 pub(crate) fn dead_band(s: f64, low: f64, high: f64) -> f64 {
     if s > high {
         s - high

@@ -1,4 +1,4 @@
-//! The obstacle cost: keep selected links of the robot away from world obstacles (MATH §4, a cost `h` for \[M18\]).
+//! The obstacle cost: keep selected links of the robot away from world obstacles ([theory §4](crate::theory#s4), a cost `h` for [\[M18\]](crate::theory#m18)).
 //!
 //! For every selected pair `k` of a link collision shape and an obstacle, with signed distance `d_k(q)` (m, negative
 //! when penetrating) and influence distance `d_i,k > 0` (m):
@@ -8,9 +8,9 @@
 //! ∇h(q) = Σ_k (δ_k / d_i,k) J_p,kᵀ n_k
 //! ```
 //!
-//! the form of the joint-limit cost \[M20\] with the distance in place of the joint position: zero, with a zero
+//! the form of the joint-limit cost [\[M20\]](crate::theory#m20) with the distance in place of the joint position: zero, with a zero
 //! gradient, beyond the influence distance, C¹ across it, and still growing (and defined) when the shapes penetrate.
-//! `h` is in metres, like the prismatic terms of \[M20\], so one removal threshold `h_max` (D6) serves both costs.
+//! `h` is in metres, like the prismatic terms of [\[M20\]](crate::theory#m20), so one removal threshold `h_max` ([D6](crate::theory#d6)) serves both costs.
 //! The gradient follows from `∂d_k/∂q = −n_kᵀ J_p,k(q)`: `n_k` is the unit normal from the link shape towards the
 //! obstacle at the closest points, `J_p,k` the point Jacobian (base frame) of the link's witness point, a point fixed
 //! on the link. (At a configuration where the closest points are not unique — parallel faces — `d` is only

@@ -1,10 +1,10 @@
-//! The visibility cost: keep every target point inside the image (MATH §4, a cost `h` for \[M18\]).
+//! The visibility cost: keep every target point inside the image ([theory §4](crate::theory#s4), a cost `h` for [\[M18\]](crate::theory#m18)).
 //!
 //! The image is the box `[x_min, x_max] × [y_min, y_max]` of normalised coordinates (the pixel rectangle
 //! `[0, width] × [0, height]` through the intrinsics); the cost is active in a band of `margin` pixels along its border:
 //! `x̃_min = (margin − c_x)/f_x`, `x̃_max = (width − margin − c_x)/f_x` (and likewise for y). For the target points
 //! `j`, at normalised coordinates `(x_j, y_j)` seen from the camera at configuration `q`, the cost has the form of the
-//! joint-limit cost \[M20\]–\[M21\] with the image coordinates in place of the joints:
+//! joint-limit cost [\[M20\]](crate::theory#m20)–[\[M21\]](crate::theory#m21) with the image coordinates in place of the joints:
 //!
 //! ```text
 //! h(q)  = ½ Σ_j ( δx_j² / Δx + δy_j² / Δy ) ,    Δx = width / f_x ,  Δy = height / f_y   (the image spans)
@@ -12,13 +12,13 @@
 //! ∇h(q) = Σ_j ( (δx_j/Δx) L_x,j + (δy_j/Δy) L_y,j ) · cVe · eJe(q)        (transposed)
 //! ```
 //!
-//! where `(L_x,j ; L_y,j)` is the point's interaction matrix (MATH §7.1, [`crate::feature::point_interaction`],
-//! with the depth `Z_j` of the point) and `cVe · eJe` the camera Jacobian (MATH \[M42\]–\[M43\]): `ẋ_j = L_x,j cVe eJe q̇`
+//! where `(L_x,j ; L_y,j)` is the point's interaction matrix ([theory §7.1](crate::theory#s7-1), [`crate::feature::point_interaction`],
+//! with the depth `Z_j` of the point) and `cVe · eJe` the camera Jacobian ([\[M42\]](crate::theory#m42)–[\[M43\]](crate::theory#m43)): `ẋ_j = L_x,j cVe eJe q̇`
 //! for a static target. `h` is zero, with a zero gradient, while every point is at least `margin` pixels inside the
 //! image; it is dimensionless (normalised image units).
 //!
 //! The cost computes the projection itself from `q` (kinematics on the stack, no allocation), so it can be evaluated
-//! at the controller's predicted configuration `q̂` (D6).
+//! at the controller's predicted configuration `q̂` ([D6](crate::theory#d6)).
 
 use super::{dead_band, Cost, CostError};
 use crate::camera::{project_point, CameraIntrinsics, EyeInHand};

@@ -122,7 +122,7 @@ impl Feature for DiagonalAngle {
     }
 }
 
-/// ViSP's moment orientation (PEER_SCENE variant B): `s = α = ½ atan2(2 μ11, μ20 − μ02)` (rad, in `(−π/2, π/2]`),
+/// ViSP's moment orientation ([peer scene variant B](crate::theory::peer_scene#variant-b)): `s = α = ½ atan2(2 μ11, μ20 − μ02)` (rad, in `(−π/2, π/2]`),
 /// 1 row, with the centred moments \[M34\].
 ///
 /// Interaction, exact by the chain rule from \[M35\]: with `c1 = μ20 − μ02`, `s1 = 2μ11`, `I1 = c1² + s1²`,

@@ -71,7 +71,7 @@ impl Feature for Centroid {
     }
 }
 
-/// ViSP's normalised centroid (PEER_SCENE variant B, `vpFeatureMomentCentered`-based `x_n, y_n`):
+/// ViSP's normalised centroid ([peer scene variant B](crate::theory::peer_scene#variant-b), `vpFeatureMomentCentered`-based `x_n, y_n`):
 /// `s = (x_n, y_n) = (a_n x_g, a_n y_g)` with `a_n = Z* sqrt(a*/a)` \[M37\].
 ///
 /// Interaction: exact product rule `L_{x_n} = a_n L_{x_g} + x_g L_{a_n}` (likewise y) with the exact rows of

@@ -92,7 +92,7 @@ impl Feature for PaperInvariants {
     }
 }
 
-/// ViSP's point-based invariants (`vpMomentCInvariant::Px()`, `Py()`, PEER_SCENE variant B, MATH §7.6):
+/// ViSP's point-based invariants (`vpMomentCInvariant::Px()`, `Py()`, [peer scene variant B](crate::theory::peer_scene#variant-b), [theory §7.6](crate::theory#s7-6)):
 /// `s = (P_x, P_y) = (I1/I3², a I2/I3³)` with `I1 = c1² + s1²`, `I2 = c2² + s2²` (\[M40\] notation),
 /// `I3 = a = μ20 + μ02` (so `P_y = I2/I3²` for a point set).
 ///

@@ -1,8 +1,8 @@
-//! Visual features of a planar point target and their interaction matrices (MATH §7, D8–D10).
+//! Visual features of a planar point target and their interaction matrices ([theory §7](crate::theory#s7), [D8](crate::theory#d8)–[D10](crate::theory#d10)).
 //!
 //! A visual feature `s` is a function of the observed image points; its **interaction matrix** `L_s`
 //! (`dim × 6`) gives its rate under a camera velocity screw `v = (υ, ω)` expressed in the camera frame `c`
-//! (linear part first, m/s and rad/s): `ṡ = L_s v` (MATH §0, §7). A visual task later builds its Jacobian as
+//! (linear part first, m/s and rad/s): `ṡ = L_s v` ([theory §0](crate::theory#s0), [§7](crate::theory#s7)). A visual task later builds its Jacobian as
 //! `J = L_s · cVe · eJe` \[M42\] (F29).
 //!
 //! # Data flow (no repeated work, no allocation)
@@ -21,7 +21,7 @@
 //!
 //! Every exact interaction matrix is the chain rule \[M29\] over the point rows \[M28\], which need the inverse depth
 //! `1/Z_k` of each point. When a [`TargetPlane`] is given to [`Observation::new`], `1/Z_k = A x_k + B y_k + C`
-//! (MATH §7.1); otherwise the depth stored in each [`ImagePoint`] is used. Both are exact for a planar target, so no
+//! ([theory §7.1](crate::theory#s7-1)); otherwise the depth stored in each [`ImagePoint`] is used. Both are exact for a planar target, so no
 //! feature *requires* the plane: the per-point depths of [`ImagePoint`] always suffice.
 //!
 //! # Interaction sources (D10)
@@ -36,7 +36,7 @@
 //!
 //! # Features
 //!
-//! | feature | rows | MATH |
+//! | feature | rows | theory |
 //! |---|---|---|
 //! | [`Point`], [`AllPoints`] | 2, 2N | \[M28\] |
 //! | [`Centroid`] | 2 (x_g, y_g) | \[M30\], \[M31\], (F31) |
@@ -44,9 +44,9 @@
 //! | [`CentredMoment`] | 1 | \[M34\]–\[M35\] (F33) |
 //! | [`AreaNormalized`] | 1 (a_n) | \[M37\]–\[M39\] (F34)–(F35) |
 //! | [`PaperInvariants`] | 2 (P_x, P_y) | \[M40\]–\[M41\] (F36), D9 |
-//! | [`NormalizedCentroid`] | 2 (x_n, y_n) | ViSP, PEER_SCENE variant B |
-//! | [`MomentOrientation`] | 1 (angle) | ViSP, PEER_SCENE variant B |
-//! | [`VispInvariants`] | 2 (P_x, P_y) | ViSP `vpMomentCInvariant`, MATH §7.6 |
+//! | [`NormalizedCentroid`] | 2 (x_n, y_n) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
+//! | [`MomentOrientation`] | 1 (angle) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
+//! | [`VispInvariants`] | 2 (P_x, P_y) | ViSP `vpMomentCInvariant`, [theory §7.6](crate::theory#s7-6) |
 //! | [`FeatureSet`] | sum | stacked features: the paper's four tasks, §7.7, variant B |
 //!
 //! ```
@@ -54,7 +54,7 @@
 //! use servostack::camera::ImagePoint;
 //! use servostack::feature::{AreaNormalization, Feature, FeatureSet, InteractionSource, Observation};
 //!
-//! // Desired image: a 0.2 m × 0.1 m rectangle, fronto-parallel at Z* = 0.5 m (PEER_SCENE).
+//! // Desired image: a 0.2 m × 0.1 m rectangle, fronto-parallel at Z* = 0.5 m (the peer scene).
 //! let desired = [(-0.2, -0.1), (0.2, -0.1), (0.2, 0.1), (-0.2, 0.1)].map(|(x, y)| ImagePoint::new(x, y, 0.5));
 //! let desired = Observation::new(&desired, None)?;
 //! let set = FeatureSet::visp_moments(AreaNormalization::from_desired(&desired, 0.5)?);
@@ -100,7 +100,7 @@ use crate::target::TargetPlane;
 use nalgebra::{Dyn, MatrixViewMut, RowVector6, U1, U6};
 
 /// One row of an interaction matrix: the partial derivatives of a scalar feature with respect to the camera twist
-/// `(υx, υy, υz, ωx, ωy, ωz)` in the camera frame (MATH §0).
+/// `(υx, υy, υz, ωx, ωy, ωz)` in the camera frame ([theory §0](crate::theory#s0)).
 pub type InteractionRow = RowVector6<f64>;
 
 /// Caller-provided storage for the rows of an interaction matrix: a mutable view of `dim` consecutive rows of an
@@ -253,7 +253,7 @@ pub enum FeatureError {
     },
 }
 
-/// Where the interaction matrix is evaluated (MATH D10, §8).
+/// Where the interaction matrix is evaluated ([D10](crate::theory#d10), [§8](crate::theory#s8)).
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Default, Hash, serde::Serialize, serde::Deserialize,
 )]
@@ -271,7 +271,7 @@ pub enum InteractionSource {
 }
 
 /// Validated image points with their inverse depths and their moments, computed once and read by every feature
-/// (MATH §7.1, §7.4).
+/// ([theory §7.1](crate::theory#s7-1), [§7.4](crate::theory#s7-4)).
 #[derive(Debug, Clone)]
 pub struct Observation<'a> {
     points: &'a [ImagePoint],
@@ -406,7 +406,7 @@ fn inverse_depth(plane: Option<&TargetPlane>, p: &ImagePoint) -> f64 {
     }
 }
 
-/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), MATH \[M28\]:
+/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), [\[M28\]](crate::theory#m28):
 ///
 /// ```text
 /// L_x = [ −ζ   0   xζ   xy      −(1+x²)   y ]

@@ -1,4 +1,4 @@
-//! Centroid and centred moments of a point set with their exact interaction rows, MATH \[M30\], \[M34\]–\[M35\] (F33).
+//! Centroid and centred moments of a point set with their exact interaction rows, [\[M30\]](crate::theory#m30), [\[M34\]](crate::theory#m34)–[\[M35\]](crate::theory#m35) [(F33)](crate::theory#f33).
 
 use super::{point_interaction, FeatureError, InteractionRow, RELATIVE_TOLERANCE};
 use crate::camera::ImagePoint;
@@ -9,7 +9,7 @@ const MAX_ORDER: usize = 3;
 /// The centroid and the centred moments `μ_ij` (`i + j ≤ 3`) of a set of N image points, with their exact
 /// interaction rows, computed once per point set by [`super::Observation::new`] and shared by every feature.
 ///
-/// Definitions (MATH \[M30\], \[M34\], (F30), (F33)), **without** a `1/N` factor on the moments:
+/// Definitions ([\[M30\]](crate::theory#m30), [\[M34\]](crate::theory#m34), [(F30)](crate::theory#f30), [(F33)](crate::theory#f33)), **without** a `1/N` factor on the moments:
 ///
 /// ```text
 /// x_g = (1/N) Σ x_k,   y_g = (1/N) Σ y_k,   μ_ij = Σ_k (x_k − x_g)^i (y_k − y_g)^j   (μ_00 = N, μ_10 = μ_01 = 0)

@@ -1,4 +1,4 @@
-//! Image point features, MATH \[M28\] (§7.1).
+//! Image point features, [\[M28\]](crate::theory#m28) ([§7.1](crate::theory#s7-1)).
 
 use super::{Feature, FeatureError, InteractionRows, InteractionSource, Observation};
 
@@ -48,7 +48,7 @@ impl Feature for Point {
 }
 
 /// All N points of the observation, stacked: `s = (x_1, y_1, …, x_N, y_N)` (2N rows), rows \[M28\] (the classical
-/// point-based task, PEER_SCENE variant A). Every [`InteractionSource`] uses \[M28\], as for [`Point`].
+/// point-based task, [peer scene variant A](crate::theory::peer_scene#variant-a)). Every [`InteractionSource`] uses \[M28\], as for [`Point`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AllPoints {
     count: usize,

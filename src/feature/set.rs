@@ -1,5 +1,5 @@
 //! Stacked features: the paper's four tasks (§7.2–§7.6), the classical 6-row vector (§7.7) and ViSP's moment vector
-//! (PEER_SCENE variant B).
+//! ([peer scene variant B](crate::theory::peer_scene#variant-b)).
 
 use super::{
     AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature, FeatureError,
@@ -74,7 +74,7 @@ impl FeatureSet {
         ])
     }
 
-    /// ViSP's moment vector of PEER_SCENE variant B: `s = (x_n, y_n, a_n, P_x, P_y, α)` with ViSP's definitions
+    /// ViSP's moment vector of [peer scene variant B](crate::theory::peer_scene#variant-b): `s = (x_n, y_n, a_n, P_x, P_y, α)` with ViSP's definitions
     /// ([`NormalizedCentroid`], [`AreaNormalized`], [`VispInvariants`], [`MomentOrientation`]); row 5 an angle.
     pub fn visp_moments(normalization: AreaNormalization) -> Self {
         Self::new(vec![
@@ -201,7 +201,7 @@ mod tests {
         );
     }
 
-    /// Variant B at the desired pose of PEER_SCENE (rectangle 0.2 × 0.1 m fronto-parallel at 0.5 m): hand values
+    /// Variant B at the desired pose of the [peer scene](crate::theory::peer_scene#scene) (rectangle 0.2 × 0.1 m fronto-parallel at 0.5 m): hand values
     /// x_n = y_n = 0, a_n = Z*, P_x = (0.03/0.05)² (I1/I3² with μ20 = 0.16, μ02 = 0.04), P_y = 0, α = 0; the errors
     /// of a set wrap its angle rows only.
     #[test]

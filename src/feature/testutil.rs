@@ -12,7 +12,7 @@ use proptest::prelude::*;
 /// Interaction matrix storage used by the tests.
 pub type Rows = OMatrix<f64, Dyn, U6>;
 
-/// The corners of a `w × h` rectangle in the plane z = 0 of the object frame, numbered around it (PEER_SCENE order).
+/// The corners of a `w × h` rectangle in the plane z = 0 of the object frame, numbered around it (the order of the [peer scene](crate::theory::peer_scene#scene)).
 pub fn rectangle(w: f64, h: f64) -> Vec<Point3<f64>> {
     let (a, b) = (w / 2.0, h / 2.0);
     vec![

@@ -7,13 +7,13 @@
 //!
 //! | name | `N` | base → tip (camera) | model |
 //! |---|---|---|---|
-//! | `"afma6"` | 6 | `afma6_base` → `afma6_end_effector` (`afma6_camera`) | Afma6-like gantry of PEER_SCENE.md, MATH §9, D12 |
+//! | `"afma6"` | 6 | `afma6_base` → `afma6_end_effector` (`afma6_camera`) | Afma6-like gantry of the [peer scene](crate::theory::peer_scene), [theory §9](crate::theory#s9), [D12](crate::theory#d12) |
 //! | `"ur5e"` | 6 | `base_link` → `tool0` (`camera_link`) | UR5e-class arm from its published DH parameters |
 //! | `"rail7"` | 7 | `rail7_base` → `rail7_tool` (`rail7_camera`) | a mixed 7-joint test chain (not a real robot) |
 //!
 //! **Afma6** (ViSP `vpAfma6`): joints 1–3 prismatic (gantry x, y, z, m), 4–6 revolute (rad); wrist offset
 //! [`AFMA6_WRIST_OFFSET`]; limits of ViSP 2011–2015; camera mount `eMc` of ViSP's Afma6 camera. The mechanical
-//! coupling [`AFMA6_COUPLING`] between joints 5 and 6 is **ignored** (`g = 0`, MATH D12): `base_from_tip` is ViSP's
+//! coupling [`AFMA6_COUPLING`] between joints 5 and 6 is **ignored** (`g = 0`, [D12](crate::theory#d12)): `base_from_tip` is ViSP's
 //! `fMe` and `tip_jacobian` its `eJe` with `g = 0`.
 //!
 //! **UR5e** (DH frames, `d = (0.1625, 0, 0, 0.1333, 0.0997, 0.0996)` m, `a = (0, −0.425, −0.3922, 0, 0, 0)` m,
@@ -31,10 +31,10 @@ pub const UR5E_URDF: &str = include_str!("../../assets/urdf/ur5e.urdf");
 /// The seven-joint test chain URDF (`assets/urdf/rail7.urdf`).
 pub const RAIL7_URDF: &str = include_str!("../../assets/urdf/rail7.urdf");
 
-/// Afma6 wrist offset `L` (m): the end-effector origin is at `(q1 + L cos q4, q2 + L sin q4, q3)` (PEER_SCENE.md).
+/// Afma6 wrist offset `L` (m): the end-effector origin is at `(q1 + L cos q4, q2 + L sin q4, q3)` ([peer scene](crate::theory::peer_scene#fme)).
 pub const AFMA6_WRIST_OFFSET: f64 = -0.06924;
 /// Afma6 coupling `g` between joints 5 and 6 in ViSP's model (last rotation `q6 − g q5`); **not** modelled by the
-/// built-in Afma6 (MATH D12), given for reference.
+/// built-in Afma6 ([D12](crate::theory#d12)), given for reference.
 pub const AFMA6_COUPLING: f64 = 0.009091;
 
 /// A built-in robot: its chain and its eye-in-hand camera mount.

@@ -148,7 +148,7 @@ impl<const N: usize> KinematicState<N> {
         &self.base_jacobian
     }
 
-    /// The geometric Jacobian in the end-effector frame, `eJe` (MATH \[M42\]): `eJe q̇` is the tip twist `(v, ω)`
+    /// The geometric Jacobian in the end-effector frame, `eJe` ([\[M42\]](crate::theory#m42)): `eJe q̇` is the tip twist `(v, ω)`
     /// expressed in tip axes, taken at the tip origin.
     pub fn tip_jacobian(&self) -> &KinematicJacobian<N> {
         &self.tip_jacobian

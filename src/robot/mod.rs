@@ -2,11 +2,11 @@
 //!
 //! # Model and workspace
 //!
-//! As Pinocchio's `Model`/`Data` (DESIGN.md, principle 2), a [`SerialChain<N>`] is the immutable model (joint kinds,
+//! As Pinocchio's `Model`/`Data`, a [`SerialChain<N>`] is the immutable model (joint kinds,
 //! fixed transforms, axes, limits, names) and a [`KinematicsWorkspace<N>`] holds everything one evaluation writes.
 //! [`SerialChain::kinematics`] fills the workspace for a joint vector `q` and returns the [`KinematicState<N>`] it
 //! computed: the pose `base_from_tip` (ViSP `fMe`), the geometric Jacobian in the base frame and in the end-effector
-//! frame (`eJe`, MATH \[M42\]), and the pose and axis of every joint. The computation allocates nothing.
+//! frame (`eJe`, [\[M42\]](crate::theory#m42)), and the pose and axis of every joint. The computation allocates nothing.
 //!
 //! # Conventions
 //!
@@ -20,7 +20,7 @@
 //!   ```text
 //!   base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i),     base_from_tip = base_from_segment_{N−1} · segment_from_tip
 //!   ```
-//! * Jacobians (twist order `(v, ω)`, MATH §0): with `a_i` the unit axis of joint `i` and `o_i` the origin of its frame,
+//! * Jacobians (twist order `(v, ω)`, [theory §0](crate::theory#s0)): with `a_i` the unit axis of joint `i` and `o_i` the origin of its frame,
 //!   both in the base frame, and `p` the origin of the tip frame,
 //!
 //!   ```text
@@ -29,7 +29,7 @@
 //!   eJe = diag(eRb, eRb) · base_J                  (the same tip twist, expressed in the tip frame)
 //!   ```
 //!   so `base_J q̇` is the linear velocity of the tip origin and the angular velocity of the tip, in base axes, and
-//!   `eJe q̇` the same twist in tip axes — the `eJe` that MATH \[M42\] multiplies by `cVe` \[M43\].
+//!   `eJe q̇` the same twist in tip axes — the `eJe` that [\[M42\]](crate::theory#m42) multiplies by `cVe` [\[M43\]](crate::theory#m43).
 //!
 //! # Joint limits
 //!
