@@ -1,7 +1,7 @@
 //! The stack controller: push tasks when the robot has settled, predict when the avoidance will fail, remove the task
-//! that blocks it, and put it back when the danger has passed (MATH §6, (F20)–(F27), D3–D7, D13).
+//! that blocks it, and put it back when the danger has passed ([theory §6](crate::theory#s6), (F20)–(F27), D3–D7, D13).
 //!
-//! # One iteration ([`StackController::step`], MATH §6.5)
+//! # One iteration ([`StackController::step`], [theory §6.5](crate::theory#s6-5))
 //!
 //! 1. The control law D1/\[M18\] runs on the current stack ([`crate::law::control_step`]): `u = q̇_n − κ P^A_n ∇h` and
 //!    the velocity sent `q̇ = u + e^{−μ(t−τ)}(q̇(τ⁻) − u(τ))`.
@@ -36,7 +36,7 @@
 //!      the law is the stack with projected gradient. The event log says so ([`EventKind::Fallback`]);
 //!    * when no task is out, the next task of the list is **pushed** (D5).
 //!
-//! [`DecisionRule::Paper`] keeps the paper's literal rule (MATH §6.2–6.4 as first implemented: a fixed horizon along
+//! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
 //! `u`, any task removable, re-insertion at the removal threshold with no dwell, no fallback) for comparison; its
 //! measured outcome is in the README (convergence-domain study).
 //!
@@ -106,7 +106,7 @@ pub enum ControllerError {
     Cost(#[from] CostError),
 }
 
-/// Which criterion picks the task to remove (MATH §6.3, D4).
+/// Which criterion picks the task to remove ([theory §6.3](crate::theory#s6-3), D4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RemovalCriterion {
@@ -128,7 +128,7 @@ pub enum DecisionRule {
     /// with hysteresis and a doubling dwell, fallback to the stack with gradient when a task cannot come back.
     #[default]
     Robust,
-    /// The paper's rule as first read (MATH §6.2–6.4): `q̂ = q + T_min u`, remove the best-scored task when
+    /// The paper's rule as first read ([theory §6.2–6.4](crate::theory#s6-2)): `q̂ = q + T_min u`, remove the best-scored task when
     /// `h(q̂) > h_max` and `h(q̂) > h(q)`, put it back when settled if the prediction with it stays `≤ h_max`. No dwell,
     /// no guard, no fallback; every task may be removed. Measured to cascade and chatter off the designed scenario.
     Paper,
@@ -309,7 +309,7 @@ impl ControllerParameters {
     }
 }
 
-/// The criteria of one stacked task at one instant (MATH §6.3).
+/// The criteria of one stacked task at one instant ([theory §6.3](crate::theory#s6-3)).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct TaskCriteria {
     /// The task's index in the task list.
@@ -743,7 +743,7 @@ impl<const N: usize> StackController<N> {
             }
         };
         if let Some(kind) = event {
-            // MATH §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
+            // theory §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
             // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1). The transition starts here, once.
             self.law_workspace.restore(memory);
             let output = match control_step(
@@ -1237,7 +1237,7 @@ impl<const N: usize> StackController<N> {
         });
     }
 
-    /// Computes [`TaskCriteria`] for every stacked task (MATH §6.3) into `self.criteria`, with the danger direction
+    /// Computes [`TaskCriteria`] for every stacked task ([theory §6.3](crate::theory#s6-3)) into `self.criteria`, with the danger direction
     /// `gradient`.
     ///
     /// # Errors
@@ -1309,5 +1309,5 @@ fn predicted_value<const N: usize>(
     }
 }
 
-/// Below this norm of `J_i⁺ e_i` the task is achieved and `C1'_i` is set to 0 (MATH D3).
+/// Below this norm of `J_i⁺ e_i` the task is achieved and `C1'_i` is set to 0 ([D3](crate::theory#d3)).
 const DIRECTION_FLOOR: f64 = 1e-12;

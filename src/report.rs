@@ -48,7 +48,7 @@ pub enum ReportError {
     Plot(#[from] crate::plot::PlotError),
 }
 
-/// Runs the four runs of MATH §9 on `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
+/// Runs the four runs of [theory §9](crate::theory#s9) on `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
 /// `summary.json` into `out_dir`, and returns the summary.
 ///
 /// # Errors

@@ -1,4 +1,4 @@
-//! Scenario files: everything a simulated experiment needs, in TOML (MATH §9, D12).
+//! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9), D12).
 //!
 //! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera mount), the camera
 //! intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target seen
@@ -21,7 +21,7 @@
 //! margin_px = 30.0                    # the cost grows when a target point comes closer than this to the border
 //! ```
 //!
-//! From one scenario, [`Scenario::run`] runs any of the paper's four [`RunKind`]s (MATH §9):
+//! From one scenario, [`Scenario::run`] runs any of the paper's four [`RunKind`]s ([theory §9](crate::theory#s9)):
 //!
 //! | run | tasks | avoidance | removal |
 //! |---|---|---|---|
@@ -223,7 +223,7 @@ pub struct TasksSpec {
     pub gains: [f64; 4],
     /// `λ` (s⁻¹) of the classical six-feature task.
     pub classical_gain: f64,
-    /// Where interaction matrices are evaluated (MATH D10): `"exact"`, `"paper_approx"` or `"desired"`.
+    /// Where interaction matrices are evaluated ([D10](crate::theory#d10)): `"exact"`, `"paper_approx"` or `"desired"`.
     #[serde(default)]
     pub interaction: InteractionKind,
     /// The a-priori depth `Z_g` (m) of the paper's centroid approximation (F31); default: the desired depth.
@@ -262,7 +262,7 @@ impl From<InteractionKind> for InteractionSource {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AvoidanceSpec {
-    /// `ρ` of MATH \[M19\], in (0, 1/2).
+    /// `ρ` of [\[M19\]](crate::theory#m19), in (0, 1/2).
     pub activation_ratio: f64,
     /// `κ` (s⁻¹), the projected-gradient gain.
     pub gain: f64,
@@ -336,7 +336,7 @@ pub struct Scenario {
     pub base_dir: Option<PathBuf>,
 }
 
-/// The paper's four runs (MATH §9).
+/// The paper's four runs ([theory §9](crate::theory#s9)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RunKind {
@@ -572,7 +572,7 @@ impl Scenario {
         }
     }
 
-    /// Runs one of the four runs of MATH §9 on this scenario.
+    /// Runs one of the four runs of [theory §9](crate::theory#s9) on this scenario.
     ///
     /// # Errors
     /// Invalid fields (see [`Scenario::experiment`]), tasks undefined at the desired pose, simulation failures. The

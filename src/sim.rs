@@ -1,5 +1,5 @@
 //! Kinematic simulation: a robot with an eye-in-hand camera looking at a planar target, driven by the stack controller
-//! (MATH §9, D11).
+//! ([theory §9](crate::theory#s9), D11).
 //!
 //! Each iteration at time `t = k·Δt`:
 //!
@@ -8,7 +8,7 @@
 //! 2. projection of the four target points (normalised `x, y` and depth `Z`), the target plane `(A, B, C)`, the
 //!    camera Jacobian `cVe · eJe`; a point behind the camera or outside the image (with a margin in pixels) ends the
 //!    run as **feature lost**;
-//! 3. every visual task is evaluated (`e_i`, `L_i`, `J_i`, MATH \[M42\]); when the stack is complete and the error of
+//! 3. every visual task is evaluated (`e_i`, `L_i`, `J_i`, [\[M42\]](crate::theory#m42)); when the stack is complete and the error of
 //!    every task is below the convergence threshold, the run has **converged**;
 //! 4. one controller iteration ([`StackController::step`]) gives `q̇`; explicit Euler `q ← q + Δt q̇`;
 //! 5. a joint outside `[q^min, q^max]` ends the run as **joint limit** (D11: a real robot stops at its limit), with the
@@ -126,7 +126,7 @@ impl<const N: usize> View<N> {
 impl<const N: usize> Scene<N> {
     /// A scene whose target is placed so that, at the configuration `desired_q`, the camera sees it at
     /// `desired_camera_from_object` (ViSP `cdMo`): `base_from_object = base_from_camera(desired_q) · cdMo`. The desired
-    /// pose is then reachable by construction. `rho` is the activation ratio of the joint-limit cost (MATH \[M19\]).
+    /// pose is then reachable by construction. `rho` is the activation ratio of the joint-limit cost ([\[M19\]](crate::theory#m19)).
     ///
     /// # Errors
     /// Non-finite `desired_q`, invalid `rho` or limits.
@@ -213,7 +213,7 @@ impl<const N: usize> Scene<N> {
         &self.intrinsics
     }
 
-    /// The joint limits and their cost (MATH \[M19\]–\[M21\]).
+    /// The joint limits and their cost ([\[M19\]](crate::theory#m19)–\[M21\]).
     pub fn limits(&self) -> &JointLimits<N> {
         &self.limits
     }

@@ -1,5 +1,6 @@
-//! The convergence-domain study: from how many situations does each method reach its goal? (the paper's claim, MATH
-//! §9: sequencing tasks and removing the blocking one enlarges the set of situations from which the robot converges.)
+//! The convergence-domain study: from how many situations does each method reach its goal? (the paper's claim,
+//! [theory §9](crate::theory#s9): sequencing tasks and removing the blocking one enlarges the set of situations from
+//! which the robot converges.)
 //!
 //! A study takes a scenario, draws `K` situations per **family** — starts perturbed around the scenario's start (mild,
 //! strong, wide), the goal configuration moved, the desired view turned about the target, starts drawn uniformly
