@@ -6,6 +6,7 @@ pub mod avoidance;
 pub mod camera;
 pub mod continuity;
 pub mod controller;
+pub mod depth;
 pub mod feature;
 pub mod law;
 pub mod linalg;
