@@ -11,6 +11,7 @@ pub mod feature;
 pub mod law;
 pub mod linalg;
 pub mod math;
+pub mod measurement;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod report;
