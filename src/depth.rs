@@ -11,33 +11,40 @@
 //!
 //! For a point at normalised coordinates `s = (x, y)` with inverse depth `ρ = 1/Z` (1/m) and a camera twist
 //! `v = (υ, ω)` (m/s, rad/s, camera frame `c`), the point rows of MATH \[M28\] split into a part proportional to `ρ`
-//! and a part that does not depend on it:
+//! and a part that does not depend on it, and the depth itself moves with the camera:
 //!
 //! ```text
 //! ṡ = ρ a(s, υ) + b(s, ω)
 //! a = (−υx + x υz,  −υy + y υz)                                      (m/s)
 //! b = (x y ωx − (1 + x²) ωy + y ωz,  (1 + y²) ωx − x y ωy − x ωz)     (1/s)
-//! ρ̇ = ρ² υz + ρ (y ωx − x ωy)                                        (from Ż = −υz − Z (y ωx − x ωy))
+//! ρ̇ / ρ = ρ υz + (y ωx − x ωy)                                       (from Ż = −υz − Z (y ωx − x ωy))
 //! ```
 //!
-//! Between two frames at `t₀` and `t₁ = t₀ + Δt`, with the twist `v` applied over `[t₀, t₁]`, the image motion gives
-//! one measurement of `ρ` at mid-period, `r = (s₁ − s₀)/Δt − b(s̄, ω) = ρ(t₀ + Δt/2) a(s̄, υ)`, with the midpoint
-//! `s̄ = (s₀ + s₁)/2` (second-order accurate). Each point keeps an estimate `ρ̂` and its information `I` (m²/s²), a
-//! recursive least-squares estimate with exponential forgetting of time constant `τ` (`memory_s`):
+//! Frame `j` arrives at `t_j` with the twist `v_j` applied over `[t_{j−1}, t_j]` (`Δt_j = t_j − t_{j−1}`); with the
+//! midpoint `s̄_j = (s_{j−1} + s_j)/2` (second-order accurate), each frame contributes `A_j = a(s̄_j, υ_j) Δt_j` (m),
+//! `B_j = b(s̄_j, ω_j) Δt_j` and the log-depth step `δ_j = Δt_j (ρ̂ υz + ȳ_j ωx − x̄_j ωy)`, so that
+//! `ρ(t_j) = ρ(t_{j−1}) e^{δ_j}`. Over a **baseline** of the last `m = min(n, window_frames)` frames ending at frame
+//! `n`, integrating `ṡ` gives one measurement of the current `ρ(t_n)`:
 //!
 //! ```text
-//! predict to mid-period:   ρ̂ ← ρ̂ + (Δt/2) (ρ̂² υz + ρ̂ (ȳ ωx − x̄ ωy)),   I ← I e^{−Δt/τ}
-//! correct:                 ρ̂ ← (I ρ̂ + aᵀ r) / (I + aᵀ a),             I ← I + aᵀ a
-//! predict to t₁:           ρ̂ ← ρ̂ + (Δt/2) (ρ̂² υz + ρ̂ (y₁ ωx − x₁ ωy))
+//! r = s_n − s_{n−m} − Σ_j B_j  =  ρ(t_n) Ã,     Ã = Σ_j A_j e^{−(δ_{j+1} + … + δ_n) − δ_j/2}      (j = n−m+1 … n)
 //! ```
 //!
-//! With `I = 0` and one update this is the least-squares `ρ̂ = aᵀ r / aᵀ a`. Before any information (`I = 0`) the
+//! The baseline matters with pixel noise: the noise of `s_n − s_{n−m}` stays the same while the motion grows with the
+//! baseline. Each point keeps an estimate `ρ̂` and its information `I` (m²): a recursive least-squares estimate with
+//! exponential forgetting of time constant `τ` (`memory_s`):
+//!
+//! ```text
+//! predict:   ρ̂ ← ρ̂ e^{δ_n},   I ← I e^{−Δt_n/τ}
+//! correct:   ρ̂ ← (I ρ̂ + Ãᵀ r) / (I + Ãᵀ Ã),   I ← I + Ãᵀ Ã
+//! ```
+//!
+//! With `I = 0` and one frame this is the least-squares `ρ̂ = Ãᵀ r / Ãᵀ Ã`. Before any information (`I = 0`) the
 //! estimate is the initial depth.
 //!
-//! **Observability.** `aᵀ a = (υx − x υz)² + (υy − y υz)²` is the squared translational speed across the point's line of
-//! sight: the depth is observable only when the camera translates, and not along that line of sight. A pure rotation
-//! (`υ = 0`) leaves the estimate unchanged (prediction only); [`DepthEstimator::information`] tells how much has been
-//! learnt about each point.
+//! **Observability.** `|A_j|² = Δt² ((υx − x υz)² + (υy − y υz)²)`: the depth is observable only when the camera
+//! translates, and not along the point's line of sight. A pure rotation (`υ = 0`) leaves the estimate unchanged but for
+//! the prediction; [`DepthEstimator::information`] tells how much has been learnt about each point.
 //!
 //! Every update is allocation-free: the per-point state is allocated once at construction.
 
@@ -102,7 +109,7 @@ pub enum DepthError {
 
 /// Where the depth of each image point comes from, selectable per task (serde: `{ kind = "desired" }`,
 /// `{ kind = "constant", depth_m = 0.5 }`, `{ kind = "previous_plane" }`,
-/// `{ kind = "estimated", initial_depth_m = 0.5, memory_s = 0.5 }`).
+/// `{ kind = "estimated", initial_depth_m = 0.5, memory_s = 1.0, window_frames = 10 }`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum DepthSource {
@@ -121,6 +128,8 @@ pub enum DepthSource {
         initial_depth_m: f64,
         /// The forgetting time constant `τ` (s, > 0).
         memory_s: f64,
+        /// The longest baseline, in frames (1 to [`MAX_WINDOW_FRAMES`]).
+        window_frames: usize,
     },
 }
 
@@ -128,7 +137,7 @@ impl DepthSource {
     /// Checks the parameters.
     ///
     /// # Errors
-    /// [`DepthError::InvalidParameter`] for a non-finite or non-positive depth or memory.
+    /// [`DepthError::InvalidParameter`] for a non-finite or non-positive depth or memory, or a window out of range.
     pub fn validate(&self) -> Result<(), DepthError> {
         match *self {
             Self::Desired | Self::PreviousPlane => Ok(()),
@@ -136,10 +145,8 @@ impl DepthSource {
             Self::Estimated {
                 initial_depth_m,
                 memory_s,
-            } => {
-                positive("initial_depth_m", initial_depth_m)?;
-                positive("memory_s", memory_s).map(drop)
-            }
+                window_frames,
+            } => DepthEstimator::new(1, initial_depth_m, memory_s, window_frames).map(drop),
         }
     }
 }
@@ -213,39 +220,61 @@ fn positive(name: &'static str, value: f64) -> Result<f64, DepthError> {
     }
 }
 
-/// The estimator's state for one point.
+/// One frame of one point in the estimator's window: the measured point and the frame's increments (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct FrameEntry {
+    /// `s_j`.
+    point: Point2<f64>,
+    /// `A_j = a(s̄_j, υ_j) Δt_j` (m).
+    a: [f64; 2],
+    /// `B_j = b(s̄_j, ω_j) Δt_j` (dimensionless).
+    b: [f64; 2],
+    /// `δ_j` (dimensionless).
+    delta: f64,
+}
+
+/// The estimate and information of one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct PointState {
-    /// The last measured normalised point.
-    previous: Point2<f64>,
+struct Estimate {
     /// `ρ̂` (1/m).
     inverse_depth: f64,
-    /// `I` (m²/s²).
+    /// `I` (m²).
     information: f64,
 }
 
-/// Online estimator of the depth of each tracked point from the camera twist and the image motion (module docs:
-/// recursive least squares on `ṡ = ρ a + b`, with prediction by `ρ̇ = ρ² υz + ρ (y ωx − x ωy)`).
+/// Largest `window_frames` accepted.
+pub const MAX_WINDOW_FRAMES: usize = 1000;
+
+/// Online estimator of the depth of each tracked point from the camera twist and the image motion over a baseline of
+/// frames (module docs: recursive least squares on the integral of `ṡ = ρ a + b`, with prediction by the depth
+/// dynamics).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthEstimator {
     memory: f64,
+    window: usize,
     initial_inverse_depth: f64,
-    /// Time of the last update (s); `None` before the first.
+    /// Time of the last frame (s); `None` before the first.
     time: Option<f64>,
-    points: Vec<PointState>,
+    /// Number of frames received.
+    frames: u64,
+    /// `window + 1` entries per point, frame `j` of point `k` at `k (window + 1) + j mod (window + 1)`.
+    entries: Vec<FrameEntry>,
+    estimates: Vec<Estimate>,
     depths: Vec<f64>,
 }
 
 impl DepthEstimator {
     /// An estimator for `point_count` points, starting from `initial_depth_m` (m) for every point, forgetting with
-    /// time constant `memory_s` (s).
+    /// time constant `memory_s` (s), measuring the image motion over baselines of up to `window_frames` frames.
     ///
     /// # Errors
-    /// [`DepthError::InvalidParameter`] for a non-finite or non-positive depth or memory, or zero points.
+    /// [`DepthError::InvalidParameter`] for a non-finite or non-positive depth or memory, zero points, or a window of
+    /// 0 or more than [`MAX_WINDOW_FRAMES`] frames.
     pub fn new(
         point_count: usize,
         initial_depth_m: f64,
         memory_s: f64,
+        window_frames: usize,
     ) -> Result<Self, DepthError> {
         positive("initial_depth_m", initial_depth_m)?;
         positive("memory_s", memory_s)?;
@@ -255,14 +284,22 @@ impl DepthEstimator {
                 value: 0.0,
             });
         }
+        if !(1..=MAX_WINDOW_FRAMES).contains(&window_frames) {
+            return Err(DepthError::InvalidParameter {
+                name: "window_frames",
+                value: window_frames as f64,
+            });
+        }
         let initial_inverse_depth = 1.0 / initial_depth_m;
         Ok(Self {
             memory: memory_s,
+            window: window_frames,
             initial_inverse_depth,
             time: None,
-            points: vec![
-                PointState {
-                    previous: Point2::origin(),
+            frames: 0,
+            entries: vec![FrameEntry::default(); point_count * (window_frames + 1)],
+            estimates: vec![
+                Estimate {
                     inverse_depth: initial_inverse_depth,
                     information: 0.0,
                 };
@@ -275,15 +312,16 @@ impl DepthEstimator {
     /// Starts again from the initial depth, forgetting every measurement (for instance after the target was lost).
     pub fn reset(&mut self) {
         self.time = None;
-        for p in &mut self.points {
-            p.inverse_depth = self.initial_inverse_depth;
-            p.information = 0.0;
+        self.frames = 0;
+        for e in &mut self.estimates {
+            e.inverse_depth = self.initial_inverse_depth;
+            e.information = 0.0;
         }
         self.depths.fill(1.0 / self.initial_inverse_depth);
     }
 
     /// One update with the points measured at `time` (s) and the camera twist `(υ, ω)` (m/s, rad/s, camera frame)
-    /// applied since the previous update (ignored at the first update, which only stores the points). Returns the
+    /// applied since the previous frame (ignored at the first frame, which only stores the points). Returns the
     /// estimated depth of each point (m). Allocates nothing.
     ///
     /// # Errors
@@ -297,9 +335,9 @@ impl DepthEstimator {
         measured: &[Point2<f64>],
         twist: &Vector6<f64>,
     ) -> Result<&[f64], DepthError> {
-        if measured.len() != self.points.len() {
+        if measured.len() != self.estimates.len() {
             return Err(DepthError::PointCountMismatch {
-                expected: self.points.len(),
+                expected: self.estimates.len(),
                 got: measured.len(),
             });
         }
@@ -319,78 +357,106 @@ impl DepthEstimator {
                 twist: (*twist).into(),
             });
         }
-        let Some(previous_time) = self.time else {
-            if !time.is_finite() {
-                return Err(DepthError::TimeNotIncreasing {
-                    previous: f64::NEG_INFINITY,
-                    time,
-                });
-            }
-            for (state, p) in self.points.iter_mut().zip(measured) {
-                state.previous = *p;
-            }
-            self.time = Some(time);
-            return Ok(&self.depths);
-        };
-        let dt = time - previous_time;
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(DepthError::TimeNotIncreasing {
-                previous: previous_time,
-                time,
-            });
+        let previous = self.time.unwrap_or(f64::NEG_INFINITY);
+        if !(time.is_finite() && time > previous) {
+            return Err(DepthError::TimeNotIncreasing { previous, time });
         }
-        // Compute every new state first, commit only when all are valid.
-        let forgetting = (-dt / self.memory).exp();
-        for (index, (state, p)) in self.points.iter().zip(measured).enumerate() {
-            let next = Self::step(state, p, twist, dt, forgetting);
-            if !(next.inverse_depth.is_finite() && next.inverse_depth > 0.0) {
-                return Err(DepthError::NonPositiveDepth {
-                    index,
-                    inverse_depth: next.inverse_depth,
-                });
+        let slots = self.window + 1;
+        let slot = (self.frames % slots as u64) as usize;
+        if self.time.is_none() {
+            for (k, p) in measured.iter().enumerate() {
+                self.entries[k * slots + slot] = FrameEntry {
+                    point: *p,
+                    ..FrameEntry::default()
+                };
+            }
+        } else {
+            let dt = time - previous;
+            let forgetting = (-dt / self.memory).exp();
+            // Check every new estimate first, commit only when all are valid.
+            for (index, p) in measured.iter().enumerate() {
+                let (_, estimate) = self.propose(index, p, twist, dt, forgetting);
+                if !(estimate.inverse_depth.is_finite() && estimate.inverse_depth > 0.0) {
+                    return Err(DepthError::NonPositiveDepth {
+                        index,
+                        inverse_depth: estimate.inverse_depth,
+                    });
+                }
+            }
+            for (index, p) in measured.iter().enumerate() {
+                let (entry, estimate) = self.propose(index, p, twist, dt, forgetting);
+                self.entries[index * slots + slot] = entry;
+                self.estimates[index] = estimate;
+                self.depths[index] = 1.0 / estimate.inverse_depth;
             }
         }
-        for ((state, depth), p) in self.points.iter_mut().zip(&mut self.depths).zip(measured) {
-            *state = Self::step(state, p, twist, dt, forgetting);
-            *depth = 1.0 / state.inverse_depth;
-        }
+        self.frames += 1;
         self.time = Some(time);
         Ok(&self.depths)
     }
 
-    /// Predict to mid-period, correct with the image motion, predict to the end (module docs).
-    fn step(
-        state: &PointState,
+    /// The new frame entry of point `index` and its predicted and corrected estimate (module docs), without changing
+    /// the state.
+    fn propose(
+        &self,
+        index: usize,
         current: &Point2<f64>,
         twist: &Vector6<f64>,
         dt: f64,
         forgetting: f64,
-    ) -> PointState {
+    ) -> (FrameEntry, Estimate) {
         let [vx, vy, vz, wx, wy, wz] = [twist[0], twist[1], twist[2], twist[3], twist[4], twist[5]];
-        let rate = |rho: f64, x: f64, y: f64| rho * rho * vz + rho * (y * wx - x * wy);
-        let (x0, y0) = (state.previous.x, state.previous.y);
-        let (x1, y1) = (current.x, current.y);
-        let (x, y) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-        let mut rho = state.inverse_depth + 0.5 * dt * rate(state.inverse_depth, x0, y0);
-        let a = [-vx + x * vz, -vy + y * vz];
-        let b = [
-            x * y * wx - (1.0 + x * x) * wy + y * wz,
-            (1.0 + y * y) * wx - x * y * wy - x * wz,
+        let slots = self.window + 1;
+        let ring = &self.entries[index * slots..(index + 1) * slots];
+        let at = |frame: u64| &ring[(frame % slots as u64) as usize];
+        let n = self.frames;
+        let previous = at(n - 1).point;
+        let (x, y) = (
+            0.5 * (previous.x + current.x),
+            0.5 * (previous.y + current.y),
+        );
+        let old = self.estimates[index];
+        let entry = FrameEntry {
+            point: *current,
+            a: [(-vx + x * vz) * dt, (-vy + y * vz) * dt],
+            b: [
+                (x * y * wx - (1.0 + x * x) * wy + y * wz) * dt,
+                ((1.0 + y * y) * wx - x * y * wy - x * wz) * dt,
+            ],
+            delta: (old.inverse_depth * vz + y * wx - x * wy) * dt,
+        };
+        // Ã and Σ B over the last m frames, newest first; `later` = δ_{j+1} + … + δ_n.
+        let m = n.min(self.window as u64);
+        let (mut a_tilde, mut b_sum, mut later) = ([0.0; 2], [0.0; 2], 0.0);
+        for back in 0..m {
+            let e = if back == 0 { &entry } else { at(n - back) };
+            let weight = (-(later + 0.5 * e.delta)).exp();
+            for i in 0..2 {
+                a_tilde[i] += e.a[i] * weight;
+                b_sum[i] += e.b[i];
+            }
+            later += e.delta;
+        }
+        let start = at(n - m).point;
+        let r = [
+            current.x - start.x - b_sum[0],
+            current.y - start.y - b_sum[1],
         ];
-        let r = [(x1 - x0) / dt - b[0], (y1 - y0) / dt - b[1]];
-        let aa = a[0] * a[0] + a[1] * a[1];
-        let ar = a[0] * r[0] + a[1] * r[1];
-        let information = state.information * forgetting;
+        let aa = a_tilde[0] * a_tilde[0] + a_tilde[1] * a_tilde[1];
+        let ar = a_tilde[0] * r[0] + a_tilde[1] * r[1];
+        let mut rho = old.inverse_depth * entry.delta.exp();
+        let information = old.information * forgetting;
         let total = information + aa;
         if total > 0.0 {
             rho = (information * rho + ar) / total;
         }
-        rho += 0.5 * dt * rate(rho, x1, y1);
-        PointState {
-            previous: *current,
-            inverse_depth: rho,
-            information: total,
-        }
+        (
+            entry,
+            Estimate {
+                inverse_depth: rho,
+                information: total,
+            },
+        )
     }
 
     /// The current depth estimates (m), one per point.
@@ -398,10 +464,10 @@ impl DepthEstimator {
         &self.depths
     }
 
-    /// The information `I` (m²/s², module docs) gathered about point `index`: 0 before any translation across its line
-    /// of sight; `None` for an index out of range.
+    /// The information `I` (m², module docs) gathered about point `index`: 0 before any translation across its line of
+    /// sight; `None` for an index out of range.
     pub fn information(&self, index: usize) -> Option<f64> {
-        self.points.get(index).map(|p| p.information)
+        self.estimates.get(index).map(|e| e.information)
     }
 }
 
@@ -415,10 +481,10 @@ mod tests {
 
     /// One translation step along x, by hand: a point at (0, 0), Z = 2 m, camera moving at υx = 0.1 m/s for 0.1 s
     /// moves to x = −0.1·0.1/2 = −0.005 (exact: the point's X becomes −0.01 m at the same Z). The estimate is then
-    /// ρ = aᵀr/aᵀa with a = (−0.1, 0), r = (−0.05, 0): ρ = 0.5, Z = 2.
+    /// ρ = Ãᵀr/ÃᵀÃ with Ã = a Δt = (−0.01, 0) m, r = (−0.005, 0): ρ = 0.5, Z = 2, and I = ÃᵀÃ = 1e−4 m².
     #[test]
     fn one_translation_step_gives_the_least_squares_depth() {
-        let mut estimator = DepthEstimator::new(1, 1.0, 1.0).unwrap();
+        let mut estimator = DepthEstimator::new(1, 1.0, 1.0, 1).unwrap();
         let twist = Vector6::new(0.1, 0.0, 0.0, 0.0, 0.0, 0.0);
         estimator
             .update(0.0, &points(&[(0.0, 0.0)]), &twist)
@@ -427,14 +493,14 @@ mod tests {
             .update(0.1, &points(&[(-0.005, 0.0)]), &twist)
             .unwrap();
         assert!((depths[0] - 2.0).abs() < 1e-12, "{}", depths[0]);
-        assert!((estimator.information(0).unwrap() - 0.01).abs() < 1e-15);
+        assert!((estimator.information(0).unwrap() - 1e-4).abs() < 1e-18);
     }
 
     /// A pure rotation carries no depth information: the estimate only follows the known depth dynamics
     /// `Ż = −Z (y ωx − x ωy)`, here `Ż = 0.2 x Z` with a mean x of 0.099 over 0.01 s.
     #[test]
     fn pure_rotation_is_not_observable() {
-        let mut estimator = DepthEstimator::new(1, 0.7, 1.0).unwrap();
+        let mut estimator = DepthEstimator::new(1, 0.7, 1.0, 1).unwrap();
         let twist = Vector6::new(0.0, 0.0, 0.0, 0.0, 0.2, 0.0);
         estimator
             .update(0.0, &points(&[(0.1, 0.0)]), &twist)
@@ -444,7 +510,7 @@ mod tests {
             .update(0.01, &points(&[(0.1 - 0.01 * 1.01 * 0.2, 0.0)]), &twist)
             .unwrap();
         let x_mean: f64 = 0.1 - 0.005 * 1.01 * 0.2;
-        // Exact: Z = 0.7 exp(0.2 · 0.01 · x̄); two explicit half steps are within 2e−8 of it (change 1.4e−4).
+        // Exact for x varying linearly: Z = 0.7 exp(0.2 · 0.01 · x̄) (change 1.4e−4).
         let exact = 0.7 * (0.01 * 0.2 * x_mean).exp();
         assert!((depths[0] - exact).abs() < 2e-8, "{} vs {exact}", depths[0]);
         assert_eq!(estimator.information(0), Some(0.0));
@@ -453,27 +519,27 @@ mod tests {
     #[test]
     fn bad_inputs_are_named_errors() {
         assert!(matches!(
-            DepthEstimator::new(4, 0.0, 1.0),
+            DepthEstimator::new(4, 0.0, 1.0, 1),
             Err(DepthError::InvalidParameter {
                 name: "initial_depth_m",
                 ..
             })
         ));
         assert!(matches!(
-            DepthEstimator::new(4, 0.5, f64::NAN),
+            DepthEstimator::new(4, 0.5, f64::NAN, 1),
             Err(DepthError::InvalidParameter {
                 name: "memory_s",
                 ..
             })
         ));
         assert!(matches!(
-            DepthEstimator::new(0, 0.5, 1.0),
+            DepthEstimator::new(0, 0.5, 1.0, 1),
             Err(DepthError::InvalidParameter {
                 name: "point_count",
                 ..
             })
         ));
-        let mut estimator = DepthEstimator::new(1, 0.5, 1.0).unwrap();
+        let mut estimator = DepthEstimator::new(1, 0.5, 1.0, 3).unwrap();
         let still = Vector6::zeros();
         assert_eq!(
             estimator
@@ -599,18 +665,28 @@ mod tests {
             Err(DepthError::NonFinitePoint { index: 0, .. })
         ));
         assert!(DepthSource::Constant { depth_m: 0.0 }.validate().is_err());
-        assert!(DepthSource::Estimated {
+        let estimated = |memory_s, window_frames| DepthSource::Estimated {
             initial_depth_m: 0.5,
-            memory_s: -1.0
+            memory_s,
+            window_frames,
+        };
+        assert!(matches!(
+            estimated(-1.0, 5).validate(),
+            Err(DepthError::InvalidParameter {
+                name: "memory_s",
+                ..
+            })
+        ));
+        for window in [0, MAX_WINDOW_FRAMES + 1] {
+            assert!(matches!(
+                estimated(1.0, window).validate(),
+                Err(DepthError::InvalidParameter {
+                    name: "window_frames",
+                    ..
+                })
+            ));
         }
-        .validate()
-        .is_err());
-        assert!(DepthSource::Estimated {
-            initial_depth_m: 0.5,
-            memory_s: 1.0
-        }
-        .validate()
-        .is_ok());
+        assert!(estimated(1.0, 5).validate().is_ok());
     }
 
     #[test]
@@ -623,14 +699,15 @@ mod tests {
             toml::from_str("depth = { kind = \"constant\", depth_m = 0.5 }").unwrap();
         assert_eq!(parsed.depth, DepthSource::Constant { depth_m: 0.5 });
         let parsed: Wrapper = toml::from_str(
-            "depth = { kind = \"estimated\", initial_depth_m = 0.6, memory_s = 0.3 }",
+            "depth = { kind = \"estimated\", initial_depth_m = 0.6, memory_s = 0.3, window_frames = 8 }",
         )
         .unwrap();
         assert_eq!(
             parsed.depth,
             DepthSource::Estimated {
                 initial_depth_m: 0.6,
-                memory_s: 0.3
+                memory_s: 0.3,
+                window_frames: 8
             }
         );
         assert!(toml::from_str::<Wrapper>("depth = { kind = \"constant\", depth = 0.5 }").is_err());

@@ -217,6 +217,28 @@ impl MeasurementParameters {
                 "in [0, 0.5)",
             );
         }
+        self.validate_hand_eye()?;
+        let [k1, k2, p1, p2, k3] = self.distortion_coefficients;
+        if let Err(CameraError::InvalidDistortion { value, .. }) =
+            BrownConrady::new(k1, k2, p1, p2, k3)
+        {
+            return invalid("distortion_coefficients", value, "finite");
+        }
+        Ok(())
+    }
+}
+
+impl MeasurementParameters {
+    /// Checks `hand_eye_translation_m` and `hand_eye_rotation_deg`.
+    fn validate_hand_eye(&self) -> Result<(), MeasurementError> {
+        let invalid = |name, value, expected| {
+            Err(MeasurementError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        let non_negative = |v: f64| v.is_finite() && v >= 0.0;
         if !non_negative(self.hand_eye_translation_m) {
             return invalid(
                 "hand_eye_translation_m",
@@ -230,12 +252,6 @@ impl MeasurementParameters {
                 self.hand_eye_rotation_deg,
                 "in [0, 180] (degrees)",
             );
-        }
-        let [k1, k2, p1, p2, k3] = self.distortion_coefficients;
-        if let Err(CameraError::InvalidDistortion { value, .. }) =
-            BrownConrady::new(k1, k2, p1, p2, k3)
-        {
-            return invalid("distortion_coefficients", value, "finite");
         }
         Ok(())
     }
@@ -266,7 +282,7 @@ pub fn perturbed_eye_in_hand(
     camera: &EyeInHand,
     parameters: &MeasurementParameters,
 ) -> Result<EyeInHand, MeasurementError> {
-    parameters.validate(1.0)?;
+    parameters.validate_hand_eye()?;
     let mount = perturbed_mount(
         camera.e_from_c(),
         parameters.hand_eye_translation_m,
@@ -804,10 +820,12 @@ mod tests {
             perturbed_mount(&mount, 0.01, 2.0, 2)
         );
         let camera = EyeInHand::new(mount).unwrap();
+        // The other parameters (here a camera rate) do not matter to the mount.
         let parameters = MeasurementParameters {
             hand_eye_translation_m: 0.01,
             hand_eye_rotation_deg: 2.0,
             seed: 4,
+            camera_rate_hz: Some(30.0),
             ..Default::default()
         };
         let believed = perturbed_eye_in_hand(&camera, &parameters).unwrap();

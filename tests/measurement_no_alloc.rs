@@ -26,7 +26,7 @@ fn measurement_depth_and_undistortion_allocate_nothing() {
     };
     let dt = 0.002;
     let mut model = MeasurementModel::new(&parameters, intrinsics, 4, dt).unwrap();
-    let mut estimator = DepthEstimator::new(4, 0.6, 1.0).unwrap();
+    let mut estimator = DepthEstimator::new(4, 0.6, 1.0, 10).unwrap();
     let camera = CalibratedCamera {
         intrinsics,
         distortion: BrownConrady::new(-0.2, 0.05, 0.001, 0.001, 0.0).unwrap(),
