@@ -231,6 +231,8 @@ struct FrameEntry {
     b: [f64; 2],
     /// `δ_j` (dimensionless).
     delta: f64,
+    /// `e^{−δ_j/2}`, so that the window's weights are products, not exponentials.
+    half_decay: f64,
 }
 
 /// The estimate and information of one point.
@@ -260,6 +262,8 @@ pub struct DepthEstimator {
     /// `window + 1` entries per point, frame `j` of point `k` at `k (window + 1) + j mod (window + 1)`.
     entries: Vec<FrameEntry>,
     estimates: Vec<Estimate>,
+    /// The new entry and estimate of each point during an update, committed once all are valid.
+    proposals: Vec<(FrameEntry, Estimate)>,
     depths: Vec<f64>,
 }
 
@@ -291,6 +295,10 @@ impl DepthEstimator {
             });
         }
         let initial_inverse_depth = 1.0 / initial_depth_m;
+        let initial = Estimate {
+            inverse_depth: initial_inverse_depth,
+            information: 0.0,
+        };
         Ok(Self {
             memory: memory_s,
             window: window_frames,
@@ -298,13 +306,8 @@ impl DepthEstimator {
             time: None,
             frames: 0,
             entries: vec![FrameEntry::default(); point_count * (window_frames + 1)],
-            estimates: vec![
-                Estimate {
-                    inverse_depth: initial_inverse_depth,
-                    information: 0.0,
-                };
-                point_count
-            ],
+            estimates: vec![initial; point_count],
+            proposals: vec![(FrameEntry::default(), initial); point_count],
             depths: vec![initial_depth_m; point_count],
         })
     }
@@ -373,18 +376,19 @@ impl DepthEstimator {
         } else {
             let dt = time - previous;
             let forgetting = (-dt / self.memory).exp();
-            // Check every new estimate first, commit only when all are valid.
+            // Compute and check every new estimate first, commit only when all are valid.
             for (index, p) in measured.iter().enumerate() {
-                let (_, estimate) = self.propose(index, p, twist, dt, forgetting);
-                if !(estimate.inverse_depth.is_finite() && estimate.inverse_depth > 0.0) {
+                let proposal = self.propose(index, p, twist, dt, forgetting);
+                let inverse_depth = proposal.1.inverse_depth;
+                if !(inverse_depth.is_finite() && inverse_depth > 0.0) {
                     return Err(DepthError::NonPositiveDepth {
                         index,
-                        inverse_depth: estimate.inverse_depth,
+                        inverse_depth,
                     });
                 }
+                self.proposals[index] = proposal;
             }
-            for (index, p) in measured.iter().enumerate() {
-                let (entry, estimate) = self.propose(index, p, twist, dt, forgetting);
+            for (index, &(entry, estimate)) in self.proposals.iter().enumerate() {
                 self.entries[index * slots + slot] = entry;
                 self.estimates[index] = estimate;
                 self.depths[index] = 1.0 / estimate.inverse_depth;
@@ -416,6 +420,7 @@ impl DepthEstimator {
             0.5 * (previous.y + current.y),
         );
         let old = self.estimates[index];
+        let delta = (old.inverse_depth * vz + y * wx - x * wy) * dt;
         let entry = FrameEntry {
             point: *current,
             a: [(-vx + x * vz) * dt, (-vy + y * vz) * dt],
@@ -423,19 +428,20 @@ impl DepthEstimator {
                 (x * y * wx - (1.0 + x * x) * wy + y * wz) * dt,
                 ((1.0 + y * y) * wx - x * y * wy - x * wz) * dt,
             ],
-            delta: (old.inverse_depth * vz + y * wx - x * wy) * dt,
+            delta,
+            half_decay: (-0.5 * delta).exp(),
         };
-        // Ã and Σ B over the last m frames, newest first; `later` = δ_{j+1} + … + δ_n.
+        // Ã and Σ B over the last m frames, newest first; `later_decay` = e^{−(δ_{j+1} + … + δ_n)}.
         let m = n.min(self.window as u64);
-        let (mut a_tilde, mut b_sum, mut later) = ([0.0; 2], [0.0; 2], 0.0);
+        let (mut a_tilde, mut b_sum, mut later_decay) = ([0.0; 2], [0.0; 2], 1.0);
         for back in 0..m {
             let e = if back == 0 { &entry } else { at(n - back) };
-            let weight = (-(later + 0.5 * e.delta)).exp();
+            let weight = later_decay * e.half_decay;
             for i in 0..2 {
                 a_tilde[i] += e.a[i] * weight;
                 b_sum[i] += e.b[i];
             }
-            later += e.delta;
+            later_decay *= e.half_decay * e.half_decay;
         }
         let start = at(n - m).point;
         let r = [
