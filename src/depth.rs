@@ -149,6 +149,25 @@ impl DepthSource {
             } => DepthEstimator::new(1, initial_depth_m, memory_s, window_frames).map(drop),
         }
     }
+
+    /// The estimator this source needs for `point_count` points: `Some` for [`DepthSource::Estimated`] (built with its
+    /// parameters), `None` for the others. Build it once per run, before the control loop.
+    ///
+    /// # Errors
+    /// [`DepthError::InvalidParameter`] as [`DepthSource::validate`] and [`DepthEstimator::new`].
+    pub fn estimator(&self, point_count: usize) -> Result<Option<DepthEstimator>, DepthError> {
+        self.validate()?;
+        match *self {
+            Self::Estimated {
+                initial_depth_m,
+                memory_s,
+                window_frames,
+            } => {
+                DepthEstimator::new(point_count, initial_depth_m, memory_s, window_frames).map(Some)
+            }
+            Self::Desired | Self::Constant { .. } | Self::PreviousPlane => Ok(None),
+        }
+    }
 }
 
 /// The data a [`DepthSource`] reads at one control period.
@@ -693,6 +712,23 @@ mod tests {
             ));
         }
         assert!(estimated(1.0, 5).validate().is_ok());
+        let estimator = estimated(1.0, 5).estimator(4).unwrap().unwrap();
+        assert_eq!(estimator.depths(), [0.5; 4]);
+        assert_eq!(DepthSource::PreviousPlane.estimator(4), Ok(None));
+        assert!(matches!(
+            estimated(1.0, 5).estimator(0),
+            Err(DepthError::InvalidParameter {
+                name: "point_count",
+                ..
+            })
+        ));
+        assert!(matches!(
+            DepthSource::Constant { depth_m: f64::NAN }.estimator(4),
+            Err(DepthError::InvalidParameter {
+                name: "depth_m",
+                ..
+            })
+        ));
     }
 
     #[test]
