@@ -7,10 +7,12 @@ pub mod avoidance;
 pub mod camera;
 pub mod continuity;
 pub mod controller;
+pub mod depth;
 pub mod feature;
 pub mod law;
 pub mod linalg;
 pub mod math;
+pub mod measurement;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod report;

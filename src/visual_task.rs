@@ -16,10 +16,13 @@
 //!
 //! [`paper_tasks`] builds the paper's four tasks (centroid, diagonal angle, `a_n`, `P_x`/`P_y`, [§9](crate::theory#s9)) and
 //! [`classical_task`] the full six-row task of the classical law ([§7.7](crate::theory#s7-7)), each in one call.
+//! [`paper_tasks_with`] lets the fourth task be chosen ([`FourthTask`]): on a square target seen head-on `P_x, P_y`
+//! are undefined ([D9](crate::theory#d9)), and [`FourthTask::Auto`] replaces them by the side-length ratios
+//! [`SideRatios`].
 
 use crate::feature::{
-    AreaNormalization, BoxedFeature, Centroid, DiagonalAngle, Feature, FeatureError, FeatureSet,
-    InteractionSource, Observation,
+    AreaNormalization, AreaNormalized, BoxedFeature, Centroid, DiagonalAngle, Feature,
+    FeatureError, FeatureSet, InteractionSource, Observation, PaperInvariants, SideRatios,
 };
 use crate::math::{wrap_angle, KinematicJacobian};
 use crate::task::{InteractionMatrix, Task, TaskError, TaskValue};
@@ -188,10 +191,12 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
 /// The paper's four tasks in priority order ([theory §9](crate::theory#s9)): e1 centroid (2 rows, [`Centroid`] with a-priori depth
 /// `a_priori_depth` for [`InteractionSource::PaperApprox`]), e2 diagonal angle from point 0 to point 2 (1 row, [D8](crate::theory#d8)),
 /// e3 `a_n` (1 row, with desired depth `desired_depth`, [\[M37\]](crate::theory#m37)), e4 `P_x, P_y` (2 rows, [\[M40\]](crate::theory#m40)). Named as
-/// [`PAPER_TASK_NAMES`]. `gains` are the `λ_i` (s⁻¹).
+/// [`PAPER_TASK_NAMES`]. `gains` are the `λ_i` (s⁻¹). Same as [`paper_tasks_with`] and
+/// [`FourthTask::PaperInvariants`].
 ///
 /// # Errors
-/// Invalid depths or gains, or features undefined on the desired observation (e.g. a square target seen head-on, [D9](crate::theory#d9)).
+/// Invalid depths or gains, or features undefined on the desired observation (e.g. a square target seen head-on, [D9](crate::theory#d9):
+/// use [`paper_tasks_with`] and [`FourthTask::Auto`] there).
 pub fn paper_tasks(
     desired: &Observation<'_>,
     desired_depth: f64,
@@ -199,12 +204,95 @@ pub fn paper_tasks(
     gains: [f64; 4],
     source: InteractionSource,
 ) -> Result<Vec<VisualTask>, TaskError> {
+    paper_tasks_with(
+        desired,
+        desired_depth,
+        a_priori_depth,
+        gains,
+        source,
+        FourthTask::PaperInvariants,
+    )
+}
+
+/// The anisotropy `I1/I3²` of the desired image (see [`crate::feature::Moments::anisotropy`]) below which
+/// [`FourthTask::Auto`] takes [`SideRatios`]: `P_x, P_y` divide by `I1` and become ill-conditioned as `I1 → 0`.
+/// `0.01` is a head-on rectangle of aspect ratio about 1.1 (the paper's 2:1 rectangle has 0.36).
+pub const CENTRAL_SYMMETRY_ANISOTROPY: f64 = 0.01;
+
+/// The feature of the fourth task (e4) of the paper's sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FourthTask {
+    /// [`FourthTask::SideRatios`] when the desired image is (nearly) centrally symmetric, i.e. its anisotropy
+    /// `I1/I3²` is below [`CENTRAL_SYMMETRY_ANISOTROPY`] (a square seen head-on); [`FourthTask::PaperInvariants`]
+    /// otherwise.
+    #[default]
+    Auto,
+    /// The paper's `P_x, P_y` ([`PaperInvariants`], \[M40\]).
+    PaperInvariants,
+    /// The normalised differences of opposite side lengths ([`SideRatios`]), defined for squares; needs exactly four
+    /// points numbered around the target.
+    SideRatios,
+}
+
+impl FourthTask {
+    /// The choice made for `desired`: [`FourthTask::Auto`] resolved, the others unchanged.
+    ///
+    /// # Errors
+    /// [`FeatureError::DegenerateArea`] (or an overflow) when the desired moments are undefined.
+    pub fn resolve(self, desired: &Observation<'_>) -> Result<Self, FeatureError> {
+        Ok(match self {
+            Self::Auto if desired.moments()?.anisotropy()? < CENTRAL_SYMMETRY_ANISOTROPY => {
+                Self::SideRatios
+            }
+            Self::Auto => Self::PaperInvariants,
+            chosen => chosen,
+        })
+    }
+}
+
+/// The paper's four tasks as [`paper_tasks`], with the feature of task e4 chosen by `fourth` ([`FourthTask`]). The
+/// fourth task keeps the name `PAPER_TASK_NAMES[3]` whatever its feature.
+///
+/// # Errors
+/// As [`paper_tasks`]; [`FourthTask::Auto`] never fails on a square seen head-on.
+pub fn paper_tasks_with(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+    gains: [f64; 4],
+    source: InteractionSource,
+    fourth: FourthTask,
+) -> Result<Vec<VisualTask>, TaskError> {
     let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
-    FeatureSet::paper_tasks(centroid, angle, normalization)
+    let fourth_feature: BoxedFeature = match fourth
+        .resolve(desired)
+        .map_err(|e| feature_error(PAPER_TASK_NAMES[3], e))?
+    {
+        FourthTask::SideRatios => Box::new(SideRatios),
+        FourthTask::Auto | FourthTask::PaperInvariants => {
+            Box::new(PaperInvariants::new(normalization))
+        }
+    };
+    let features: [BoxedFeature; 4] = [
+        Box::new(centroid),
+        Box::new(angle),
+        Box::new(AreaNormalized::new(normalization)),
+        fourth_feature,
+    ];
+    features
         .into_iter()
         .zip(PAPER_TASK_NAMES)
         .zip(gains)
-        .map(|((set, name), gain)| VisualTask::new(name, Box::new(set), desired, gain, source))
+        .map(|((feature, name), gain)| {
+            VisualTask::new(
+                name,
+                Box::new(FeatureSet::new(vec![feature])),
+                desired,
+                gain,
+                source,
+            )
+        })
         .collect()
 }
 

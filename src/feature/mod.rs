@@ -44,6 +44,7 @@
 //! | [`CentredMoment`] | 1 | \[M34\]–\[M35\] (F33) |
 //! | [`AreaNormalized`] | 1 (a_n) | \[M37\]–\[M39\] (F34)–(F35) |
 //! | [`PaperInvariants`] | 2 (P_x, P_y) | \[M40\]–\[M41\] (F36), D9 |
+//! | [`SideRatios`] | 2 (r_x, r_y) | replaces `P_x, P_y` for square targets (chain rule over \[M28\]) |
 //! | [`NormalizedCentroid`] | 2 (x_n, y_n) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
 //! | [`MomentOrientation`] | 1 (angle) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
 //! | [`VispInvariants`] | 2 (P_x, P_y) | ViSP `vpMomentCInvariant`, [theory §7.6](crate::theory#s7-6) |
@@ -83,6 +84,7 @@ mod invariants;
 mod moments;
 mod point;
 mod set;
+mod sides;
 #[cfg(test)]
 mod testutil;
 
@@ -93,6 +95,7 @@ pub use invariants::{PaperInvariants, VispInvariants};
 pub use moments::Moments;
 pub use point::{AllPoints, Point};
 pub use set::{BoxedFeature, FeatureSet};
+pub use sides::SideRatios;
 
 use crate::camera::ImagePoint;
 use crate::math::wrap_angle;

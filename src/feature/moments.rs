@@ -170,6 +170,17 @@ impl Moments {
         Ok((a, self.l_mu[2][0] + self.l_mu[0][2]))
     }
 
+    /// The anisotropy `I1 / I3² = ((μ20 − μ02)² + 4 μ11²) / (μ20 + μ02)²` \[M40\] (dimensionless, in `[0, 1]`): 0 when
+    /// the second-order moments are isotropic (a square or any regular polygon seen head-on, D9), 1 for points on a
+    /// line. For a `w × h` rectangle seen head-on it is `((w² − h²)/(w² + h²))²`.
+    ///
+    /// # Errors
+    /// [`FeatureError::DegenerateArea`] as [`Moments::size`].
+    pub fn anisotropy(&self) -> Result<f64, FeatureError> {
+        let o = self.second_order_terms()?;
+        Ok(o.i1 / (o.i3 * o.i3))
+    }
+
     /// Second-order terms of \[M40\]: `c1 = μ20 − μ02`, `s1 = 2 μ11`, `I1 = c1² + s1²`, `I3 = a` and their rows.
     ///
     /// # Errors

@@ -1,7 +1,18 @@
-//! Pinhole camera: intrinsics, pixel ↔ normalised coordinates, projection of 3-D points ([theory §7.1](crate::theory#s7-1), [§8](crate::theory#s8)).
+//! Camera: pinhole intrinsics, lens distortion, calibration files, pixel ↔ normalised coordinates, projection of 3-D
+//! points ([theory §7.1](crate::theory#s7-1), [§8](crate::theory#s8)).
 //!
 //! Frames: the camera frame `c` has z forward along the optical axis, x right, y down. Projection gives normalised
 //! image coordinates `x = X/Z`, `y = Y/Z` (metric, not pixels) and the depth `Z` (m) of each point.
+//!
+//! Parts: [`CameraIntrinsics`] (pinhole, pixels), [`BrownConrady`] (lens distortion on normalised coordinates,
+//! `distortion`), [`CalibratedCamera`] (both: measured pixel ↔ undistorted normalised point) and its loading from ROS
+//! `camera_info` and OpenCV YAML calibration files (`calibration`).
+
+mod calibration;
+mod distortion;
+
+pub use calibration::{CalibrationError, CalibrationFormat};
+pub use distortion::{BrownConrady, UNDISTORTION_MAX_ITERATIONS, UNDISTORTION_TOLERANCE};
 
 use crate::math::{all_finite, twist_transform, KinematicJacobian, TwistTransform};
 use nalgebra::{Isometry3, Point3};
@@ -54,6 +65,52 @@ pub enum CameraError {
     NonFinite {
         /// What was not finite (`"point 2"`, `"c_from_o"`, `"e_from_c"`).
         what: String,
+    },
+    /// A distortion coefficient is not finite.
+    #[error("invalid distortion coefficient {name} = {value}")]
+    InvalidDistortion {
+        /// The coefficient (`"k1"`, `"k2"`, `"p1"`, `"p2"`, `"k3"`).
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A rational or thin-prism distortion model (8, 12 or 14 coefficients), which is not supported: only the
+    /// Brown–Conrady "plumb bob" model with 4 or 5 coefficients is.
+    #[error("{count} distortion coefficients: OpenCV's rational/thin-prism models are not supported (use 4 or 5)")]
+    RationalDistortion {
+        /// Number of coefficients given.
+        count: usize,
+    },
+    /// A distortion coefficient list whose length is neither 4 nor 5 (nor a rational model's).
+    #[error(
+        "{count} distortion coefficients: expected 4 (k1, k2, p1, p2) or 5 (k1, k2, p1, p2, k3)"
+    )]
+    DistortionCoefficientCount {
+        /// Number of coefficients given.
+        count: usize,
+    },
+    /// An image point (pixel or normalised coordinates) is NaN or infinite.
+    #[error("non-finite image point ({x}, {y})")]
+    NonFiniteImagePoint {
+        /// Abscissa (px or normalised, as given).
+        x: f64,
+        /// Ordinate.
+        y: f64,
+    },
+    /// Undistortion did not converge: the distorted normalised point has no undistorted preimage within the lens
+    /// model's invertible radius, or Newton's method ran out of steps.
+    #[error(
+        "undistortion of ({x_distorted}, {y_distorted}) did not converge: residual {residual} after {iterations} steps"
+    )]
+    UndistortionFailed {
+        /// Distorted normalised abscissa.
+        x_distorted: f64,
+        /// Distorted normalised ordinate.
+        y_distorted: f64,
+        /// Last residual `‖d(x, y) − (x_d, y_d)‖∞` (normalised units).
+        residual: f64,
+        /// Newton steps taken.
+        iterations: usize,
     },
     /// The output slice does not have one entry per input point.
     #[error("{points} points but an output slice of {outputs}")]
@@ -163,6 +220,48 @@ impl CameraIntrinsics {
     /// `true` when every point is in the field of view with this margin (px), see [`Self::in_field_of_view`].
     pub fn all_in_field_of_view(&self, points: &[ImagePoint], margin: f64) -> bool {
         points.iter().all(|p| self.in_field_of_view(p, margin))
+    }
+}
+
+/// A calibrated camera: pinhole intrinsics and Brown–Conrady distortion, as a calibration tool delivers them.
+///
+/// A point at undistorted normalised coordinates `(x, y)` is measured at the pixel
+/// `(u, v) = (cx + fx x_d, cy + fy y_d)` with `(x_d, y_d) = distort(x, y)` ([`BrownConrady::distort`]); the way back
+/// is `(x_d, y_d) = ((u − cx)/fx, (v − cy)/fy)`, then [`BrownConrady::undistort`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibratedCamera {
+    /// The pinhole intrinsics (px).
+    pub intrinsics: CameraIntrinsics,
+    /// The lens distortion (dimensionless coefficients on normalised coordinates).
+    pub distortion: BrownConrady,
+}
+
+impl CalibratedCamera {
+    /// A camera without distortion.
+    pub fn pinhole(intrinsics: CameraIntrinsics) -> Self {
+        Self {
+            intrinsics,
+            distortion: BrownConrady::default(),
+        }
+    }
+
+    /// The pixel `(u, v)` at which the point of undistorted normalised coordinates `(x, y)` is imaged.
+    pub fn pixel_of(&self, x: f64, y: f64) -> (f64, f64) {
+        let (xd, yd) = self.distortion.distort(x, y);
+        self.intrinsics.normalized_to_pixel(xd, yd)
+    }
+
+    /// The undistorted normalised coordinates `(x, y)` of a measured pixel `(u, v)`. Allocates nothing.
+    ///
+    /// # Errors
+    /// [`CameraError::NonFiniteImagePoint`] for a non-finite pixel; [`CameraError::UndistortionFailed`] (see
+    /// [`BrownConrady::undistort`]).
+    pub fn normalized_of(&self, u: f64, v: f64) -> Result<(f64, f64), CameraError> {
+        if !(u.is_finite() && v.is_finite()) {
+            return Err(CameraError::NonFiniteImagePoint { x: u, y: v });
+        }
+        let (xd, yd) = self.intrinsics.pixel_to_normalized(u, v);
+        self.distortion.undistort(xd, yd)
     }
 }
 
