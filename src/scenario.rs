@@ -47,7 +47,7 @@ use crate::robot::{builtin, RobotError, SerialChain};
 use crate::sim::{simulate, Drive, Run, Scene, SimError, SimulationParameters};
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
-use crate::visual_task::{classical_task, paper_tasks};
+use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -233,6 +233,10 @@ pub struct TasksSpec {
     /// (the target centre's depth at the goal). Another value scales the feature and its interaction matrix.
     #[serde(default)]
     pub area_depth_m: Option<f64>,
+    /// The fourth task: `"auto"` (default: the paper's `P_x, P_y`, or the side ratios on a centrally symmetric target
+    /// such as a square marker seen head-on, [D9](crate::theory#d9)), `"paper_invariants"` or `"side_ratios"`.
+    #[serde(default)]
+    pub fourth_task: FourthTask,
 }
 
 /// The interaction source as written in files.
@@ -600,19 +604,21 @@ impl Scenario {
         let desired_depth = self.tasks.area_depth_m.unwrap_or(goal_depth);
         let source = self.tasks.interaction.into();
         let tasks = match kind {
-            RunKind::Classical => vec![classical_task(
+            RunKind::Classical => vec![classical_task_with(
                 &desired,
                 desired_depth,
                 a_priori_depth,
                 self.tasks.classical_gain,
                 source,
+                self.tasks.fourth_task,
             )?],
-            _ => paper_tasks(
+            _ => paper_tasks_with(
                 &desired,
                 desired_depth,
                 a_priori_depth,
                 self.tasks.gains,
                 source,
+                self.tasks.fourth_task,
             )?,
         };
         let avoid = matches!(kind, RunKind::StackGradient | RunKind::StackController);

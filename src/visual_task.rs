@@ -264,23 +264,7 @@ pub fn paper_tasks_with(
     source: InteractionSource,
     fourth: FourthTask,
 ) -> Result<Vec<VisualTask>, TaskError> {
-    let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
-    let fourth_feature: BoxedFeature = match fourth
-        .resolve(desired)
-        .map_err(|e| feature_error(PAPER_TASK_NAMES[3], e))?
-    {
-        FourthTask::SideRatios => Box::new(SideRatios),
-        FourthTask::Auto | FourthTask::PaperInvariants => {
-            Box::new(PaperInvariants::new(normalization))
-        }
-    };
-    let features: [BoxedFeature; 4] = [
-        Box::new(centroid),
-        Box::new(angle),
-        Box::new(AreaNormalized::new(normalization)),
-        fourth_feature,
-    ];
-    features
+    paper_feature_list(desired, desired_depth, a_priori_depth, fourth)?
         .into_iter()
         .zip(PAPER_TASK_NAMES)
         .zip(gains)
@@ -297,7 +281,7 @@ pub fn paper_tasks_with(
 }
 
 /// The classical task ([theory §7.7](crate::theory#s7-7)): `s = (x_g, y_g, α, a_n, P_x, P_y)` in one level, named
-/// [`CLASSICAL_TASK_NAME`], with gain `gain` (s⁻¹).
+/// [`CLASSICAL_TASK_NAME`], with gain `gain` (s⁻¹). As [`classical_task_with`] and [`FourthTask::PaperInvariants`].
 ///
 /// # Errors
 /// As [`paper_tasks`].
@@ -311,6 +295,49 @@ pub fn classical_task(
     let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
     let set = FeatureSet::paper_full(centroid, angle, normalization);
     VisualTask::new(CLASSICAL_TASK_NAME, Box::new(set), desired, gain, source)
+}
+
+/// The classical task with the same six features as the paper's sequence [`paper_tasks_with`] builds for `fourth`
+/// (on a square marker, the side ratios in place of `P_x, P_y`), in one level.
+///
+/// # Errors
+/// As [`paper_tasks_with`].
+pub fn classical_task_with(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+    gain: f64,
+    source: InteractionSource,
+    fourth: FourthTask,
+) -> Result<VisualTask, TaskError> {
+    let features = paper_feature_list(desired, desired_depth, a_priori_depth, fourth)?;
+    let set = FeatureSet::new(features.into_iter().collect());
+    VisualTask::new(CLASSICAL_TASK_NAME, Box::new(set), desired, gain, source)
+}
+
+/// The four features of the paper's sequence, the fourth chosen by `fourth` ([`FourthTask::resolve`]).
+fn paper_feature_list(
+    desired: &Observation<'_>,
+    desired_depth: f64,
+    a_priori_depth: f64,
+    fourth: FourthTask,
+) -> Result<[BoxedFeature; 4], TaskError> {
+    let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
+    let fourth_feature: BoxedFeature = match fourth
+        .resolve(desired)
+        .map_err(|e| feature_error(PAPER_TASK_NAMES[3], e))?
+    {
+        FourthTask::SideRatios => Box::new(SideRatios),
+        FourthTask::Auto | FourthTask::PaperInvariants => {
+            Box::new(PaperInvariants::new(normalization))
+        }
+    };
+    Ok([
+        Box::new(centroid),
+        Box::new(angle),
+        Box::new(AreaNormalized::new(normalization)),
+        fourth_feature,
+    ])
 }
 
 fn paper_features(

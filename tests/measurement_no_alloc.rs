@@ -1,4 +1,4 @@
-//! The per-cycle calls of the real-camera path allocate nothing (DESIGN principle 2): undistortion of measured pixels,
+//! The per-cycle calls of the real-camera path allocate nothing: undistortion of measured pixels,
 //! the measurement model (noise, slower camera, latency, prediction), the depth estimator and the depth assignment.
 
 #[path = "common/counting_allocator.rs"]

@@ -3,11 +3,9 @@
 //! the square-marker scenario.
 
 use nalgebra::{Dyn, OMatrix, U6};
-use servostack::controller::ControllerParameters;
 use servostack::feature::{FeatureError, InteractionSource, Observation};
-use servostack::law::ControlLaw;
-use servostack::scenario::Scenario;
-use servostack::sim::{simulate, Drive, Outcome};
+use servostack::scenario::{RunKind, Scenario};
+use servostack::sim::Outcome;
 use servostack::task::TaskError;
 use servostack::visual_task::{paper_tasks, paper_tasks_with, FourthTask, VisualTask};
 use std::path::Path;
@@ -98,48 +96,7 @@ fn auto_keeps_the_paper_features_on_a_rectangle() {
 #[test]
 fn square_marker_scenario_converges_with_the_full_method() {
     let scenario = scenario();
-    let experiment = scenario.experiment::<6>().unwrap();
-    let view = experiment
-        .scene
-        .view_from(&experiment.desired_camera_from_target)
-        .unwrap();
-    let desired = view.observation().unwrap();
-    let depth = experiment.desired_camera_from_target.translation.z;
-    let tasks = paper_tasks_with(
-        &desired,
-        depth,
-        scenario.tasks.a_priori_depth_m.unwrap_or(depth),
-        scenario.tasks.gains,
-        scenario.tasks.interaction.into(),
-        FourthTask::Auto,
-    )
-    .unwrap();
-    // The drive of `Scenario::run_experiment` for the full method.
-    let max_gain = scenario.tasks.gains.iter().copied().fold(0.0, f64::max);
-    let law = ControlLaw::new(
-        scenario
-            .avoidance
-            .transition_gain
-            .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain),
-        scenario.avoidance.gain,
-    )
-    .unwrap();
-    let drive = Drive {
-        law: &law,
-        controller: ControllerParameters {
-            allow_removal: true,
-            ..scenario.controller
-        },
-        avoid_joint_limits: true,
-    };
-    let run = simulate(
-        &experiment.scene,
-        &tasks,
-        drive,
-        &experiment.start,
-        &scenario.simulation,
-    )
-    .unwrap();
+    let run = scenario.run::<6>(RunKind::StackController).unwrap();
     println!(
         "square marker: {:?} after {} iterations, {} events, min margin {:.3}",
         run.outcome,
