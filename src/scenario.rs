@@ -147,7 +147,18 @@ impl PoseSpec {
     }
 }
 
-/// The robot: a built-in arm by name, or a URDF file.
+/// Joint limits that replace the chain's own (`[robot] joint_limits = { lower = [..], upper = [..] }`), e.g. the
+/// narrower ranges of a real controller's safety configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointLimitsSpec {
+    /// `q^min` (m or rad per joint, as the chain), `N` finite values.
+    pub lower: Vec<f64>,
+    /// `q^max` (m or rad per joint), `N` finite values, each above its `lower`.
+    pub upper: Vec<f64>,
+}
+
+/// The robot: a built-in arm by name, or a URDF file; either with optional joint limits replacing the chain's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, untagged)]
 pub enum RobotSpec {
@@ -155,6 +166,9 @@ pub enum RobotSpec {
     Builtin {
         /// Its name.
         builtin: String,
+        /// Joint limits replacing the built-in ones (default: the robot's own).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        joint_limits: Option<JointLimitsSpec>,
     },
     /// A chain of a URDF file (path relative to the scenario file) with a camera mount on the tip link.
     Urdf {
@@ -166,6 +180,9 @@ pub enum RobotSpec {
         tip_link: String,
         /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`).
         camera_mount: PoseSpec,
+        /// Joint limits replacing the URDF's (default: the URDF's own).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        joint_limits: Option<JointLimitsSpec>,
     },
 }
 
@@ -497,7 +514,7 @@ impl Scenario {
         chain: SerialChain<N>,
     ) -> Result<ObstacleCost<N>, ScenarioError> {
         let urdf = match &self.robot {
-            RobotSpec::Builtin { builtin } => builtin::urdf_by_name(builtin)?.to_owned(),
+            RobotSpec::Builtin { builtin, .. } => builtin::urdf_by_name(builtin)?.to_owned(),
             RobotSpec::Urdf { urdf, .. } => {
                 let path = self.resolve(urdf);
                 std::fs::read_to_string(&path).map_err(|e| RobotError::File {
@@ -550,30 +567,53 @@ impl Scenario {
         }
     }
 
-    /// The robot's chain and camera mount.
+    /// The robot's chain (with the `joint_limits` override, if any) and camera mount.
     ///
     /// # Errors
-    /// An unknown built-in, an unreadable or invalid URDF, a chain without `N` joints, an invalid mount.
+    /// An unknown built-in, an unreadable or invalid URDF, a chain without `N` joints, an invalid mount; joint limits
+    /// of the wrong size, non-finite or with `lower ≥ upper` (naming `robot.joint_limits.lower` or `.upper`).
     pub fn robot_model<const N: usize>(
         &self,
     ) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
-        match &self.robot {
-            RobotSpec::Builtin { builtin } => {
+        let (chain, camera, limits) = match &self.robot {
+            RobotSpec::Builtin {
+                builtin,
+                joint_limits,
+            } => {
                 let robot = builtin::by_name::<N>(builtin)?;
-                Ok((robot.chain, robot.camera))
+                (robot.chain, robot.camera, joint_limits)
             }
             RobotSpec::Urdf {
                 urdf,
                 base_link,
                 tip_link,
                 camera_mount,
+                joint_limits,
             } => {
                 let path = self.resolve(urdf);
                 let chain = SerialChain::from_urdf_file(&path, base_link, tip_link)?;
                 let mount = camera_mount.to_isometry("robot.camera_mount")?;
-                Ok((chain, EyeInHand::new(mount)?))
+                (chain, EyeInHand::new(mount)?, joint_limits)
             }
+        };
+        let Some(limits) = limits else {
+            return Ok((chain, camera));
+        };
+        let lower = joints::<N>("robot.joint_limits.lower", &limits.lower)?;
+        let upper = joints::<N>("robot.joint_limits.upper", &limits.upper)?;
+        if let Some(i) = (0..N).find(|&i| lower[i] >= upper[i]) {
+            return Err(invalid(
+                "robot.joint_limits.upper",
+                format!(
+                    "joint {i}: upper = {} is not above robot.joint_limits.lower = {}",
+                    upper[i], lower[i]
+                ),
+            ));
         }
+        let chain = chain
+            .with_limits(lower, upper)
+            .map_err(|e| invalid("robot.joint_limits", e.to_string()))?;
+        Ok((chain, camera))
     }
 
     /// Runs one of the four runs of [theory §9](crate::theory#s9) on this scenario.

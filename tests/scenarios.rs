@@ -1,8 +1,10 @@
-//! Scenario files: the shipped six-revolute scenario converges with the full method, and bad files give errors that
-//! name the field at fault.
+//! Scenario files: the shipped six-revolute scenario converges with the full method, the scenarios where the limits
+//! matter (`ur5e_limits`, `rail7_limits`) reproduce the limit story, and bad files give errors that name the field at
+//! fault.
 
+use servostack::controller::EventKind;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
-use servostack::sim::Outcome;
+use servostack::sim::{Outcome, Run};
 use std::path::Path;
 
 const UR5E: &str = include_str!("../assets/scenarios/ur5e.toml");
@@ -23,6 +25,54 @@ fn full_method_on_the_six_revolute_arm_converges() {
     assert!(run.final_error_norm() < 4.0 * scenario.simulation.convergence_error);
     assert!(run.max_velocity_jump() <= 1e-9);
     assert!(run.min_normalized_margin() > 0.0);
+}
+
+/// The limit story of a scenario file: the classical law stops at the limit of `joint`; the full method removes a task
+/// and later re-inserts that same task (without falling back), then converges with every task stacked, inside the
+/// limits. Returns the four runs for scenario-specific checks.
+fn limit_story<const N: usize>(file: &str, joint: usize) -> Vec<Run<N>> {
+    let scenario = Scenario::from_file(&assets().join(file)).unwrap();
+    let experiment = scenario.experiment::<N>().unwrap();
+    let runs: Vec<Run<N>> = RunKind::ALL
+        .iter()
+        .map(|&kind| scenario.run_experiment(&experiment, kind).unwrap())
+        .collect();
+
+    match &runs[0].outcome {
+        Outcome::JointLimit { joint: hit, .. } => assert_eq!(*hit, joint, "classical"),
+        other => panic!("{file}: the classical run should hit a joint limit, got {other:?}"),
+    }
+
+    let full = &runs[3];
+    assert_eq!(full.outcome, Outcome::Converged, "{file}: full method");
+    assert_eq!(
+        full.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    assert!(full.final_error_norm() < 4.0 * scenario.simulation.convergence_error);
+    assert!(full.min_normalized_margin() > 0.0, "{file}: full method");
+    assert_eq!(full.events_of(EventKind::Fallback).count(), 0, "{file}");
+    let removal = full
+        .events_of(EventKind::Remove)
+        .next()
+        .unwrap_or_else(|| panic!("{file}: the full method should remove a task"));
+    assert!(
+        full.events_of(EventKind::Reinsert)
+            .any(|e| e.task == removal.task && e.iteration > removal.iteration),
+        "{file}: the removed task should be re-inserted: {:?}",
+        full.events
+    );
+    runs
+}
+
+#[test]
+fn on_the_ur5e_with_a_restricted_elbow_the_full_method_removes_and_reinserts() {
+    let runs = limit_story::<6>("ur5e_limits.toml", 2);
+    // Without avoidance the stack hits the elbow limit too.
+    assert!(matches!(
+        runs[1].outcome,
+        Outcome::JointLimit { joint: 2, .. }
+    ));
 }
 
 /// The text of the UR5e scenario with one line replaced (the line must exist).
@@ -124,6 +174,57 @@ fn invalid_values_are_named() {
         "interaction = \"approximate\"",
     ));
     assert!(message.contains("interaction"), "{message}");
+}
+
+#[test]
+fn bad_joint_limit_overrides_are_named() {
+    let limits = |lower: &str, upper: &str| {
+        edited(
+            "builtin = \"ur5e\"",
+            &format!(
+                "builtin = \"ur5e\"\njoint_limits = {{ lower = [{lower}], upper = [{upper}] }}"
+            ),
+        )
+    };
+    let six = |v: f64| vec![v.to_string(); 6].join(", ");
+    // A valid override that keeps the start and the goal inside is accepted.
+    assert!(
+        Scenario::from_toml_str(&limits(&six(-3.0), &six(3.0)), None)
+            .unwrap()
+            .experiment::<6>()
+            .is_ok()
+    );
+    let message = error_of(&limits("-3.0, -3.0, -3.0", &six(3.0)));
+    assert!(
+        message.contains("robot.joint_limits.lower") && message.contains("3 values"),
+        "{message}"
+    );
+    let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0"));
+    assert!(
+        message.contains("robot.joint_limits.upper") && message.contains("7 values"),
+        "{message}"
+    );
+    let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 3.0, -3.0, 3.0, 3.0"));
+    assert!(
+        message.contains("robot.joint_limits") && message.contains("joint 3"),
+        "{message}"
+    );
+    let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 3.0, -4.0, 3.0, 3.0"));
+    assert!(
+        message.contains("robot.joint_limits") && message.contains("joint 3"),
+        "{message}"
+    );
+    let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 3.0, nan, 3.0, 3.0"));
+    assert!(
+        message.contains("robot.joint_limits.upper") && message.contains("not finite"),
+        "{message}"
+    );
+    // Limits that leave the start outside are caught by the start's check.
+    let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 1.0, 3.0, 3.0, 3.0"));
+    assert!(
+        message.contains("start.joints") && message.contains("joint 2"),
+        "{message}"
+    );
 }
 
 #[test]

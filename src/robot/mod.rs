@@ -168,6 +168,16 @@ pub enum RobotError {
         /// The values read.
         values: Vec<f64>,
     },
+    /// A joint limit given to [`SerialChain::with_limits`] is NaN or infinite.
+    #[error("joint {joint:?}: limits must be finite (lower = {lower}, upper = {upper})")]
+    NonFiniteLimits {
+        /// Joint name.
+        joint: String,
+        /// Lower limit given (rad or m).
+        lower: f64,
+        /// Upper limit given (rad or m).
+        upper: f64,
+    },
     /// A joint position given to the kinematics is NaN or infinite.
     #[error("joint {index} position is not finite: {value}")]
     NonFiniteJoint {
@@ -334,12 +344,12 @@ impl<const N: usize> SerialChain<N> {
         &self.joints
     }
 
-    /// Lower joint limits (rad or m); `−∞` for continuous joints.
+    /// Lower joint limits (rad or m); `−∞` for continuous joints (unless set by [`Self::with_limits`]).
     pub fn lower_limits(&self) -> &JointVector<N> {
         &self.lower
     }
 
-    /// Upper joint limits (rad or m); `+∞` for continuous joints.
+    /// Upper joint limits (rad or m); `+∞` for continuous joints (unless set by [`Self::with_limits`]).
     pub fn upper_limits(&self) -> &JointVector<N> {
         &self.upper
     }
@@ -360,10 +370,116 @@ impl<const N: usize> SerialChain<N> {
         self.links.iter().find(|l| l.name == name)
     }
 
+    /// The same chain with other joint limits `lower < upper` (rad for revolute and continuous joints, m for
+    /// prismatic joints), e.g. the narrower ranges of a controller's safety configuration. Every limit must be finite;
+    /// a continuous joint given limits is limited from then on (its [`JointKind`] is unchanged). Nothing else of the
+    /// chain changes.
+    ///
+    /// ```
+    /// use servostack::math::JointVector;
+    /// let chain = servostack::robot::builtin::ur5e()?.chain;
+    /// let wrist = JointVector::<6>::from_element(1.0);
+    /// let narrower = chain.with_limits(-wrist, wrist)?;
+    /// assert_eq!(narrower.upper_limits()[5], 1.0);
+    /// # Ok::<(), servostack::robot::RobotError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`RobotError::NonFiniteLimits`] for a NaN or infinite limit, [`RobotError::InvalidLimits`] for
+    /// `lower ≥ upper`; both name the first joint at fault.
+    pub fn with_limits(
+        mut self,
+        lower: JointVector<N>,
+        upper: JointVector<N>,
+    ) -> Result<Self, RobotError> {
+        for (i, joint) in self.joints.iter().enumerate() {
+            let (lo, hi) = (lower[i], upper[i]);
+            if !(lo.is_finite() && hi.is_finite()) {
+                return Err(RobotError::NonFiniteLimits {
+                    joint: joint.name.clone(),
+                    lower: lo,
+                    upper: hi,
+                });
+            }
+            if lo >= hi {
+                return Err(RobotError::InvalidLimits {
+                    joint: joint.name.clone(),
+                    lower: lo,
+                    upper: hi,
+                });
+            }
+        }
+        self.lower = lower;
+        self.upper = upper;
+        Ok(self)
+    }
+
     /// `true` when every joint of `q` lies in `[lower, upper]` (limits included).
     pub fn within_limits(&self, q: &JointVector<N>) -> bool {
         q.iter()
             .zip(self.lower.iter().zip(self.upper.iter()))
             .all(|(q, (lo, hi))| *lo <= *q && *q <= *hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn with_limits_replaces_the_limits_and_nothing_else() {
+        let chain = builtin::rail7().unwrap().chain;
+        let lower = JointVector::<7>::from_element(-0.5);
+        let upper = JointVector::<7>::from_element(0.25);
+        let limited = chain.clone().with_limits(lower, upper).unwrap();
+        assert_eq!(limited.lower_limits(), &lower);
+        assert_eq!(limited.upper_limits(), &upper);
+        // The continuous roll joint keeps its kind, now with finite limits.
+        assert_eq!(limited.joints()[4].kind(), JointKind::Continuous);
+        assert!(chain.upper_limits()[4].is_infinite());
+        assert_eq!(limited.joints(), chain.joints());
+        assert_eq!(limited.links(), chain.links());
+        assert!(!limited.within_limits(&JointVector::<7>::from_element(0.3)));
+    }
+
+    #[test]
+    fn with_limits_rejects_unordered_and_non_finite_limits() {
+        let chain = builtin::ur5e().unwrap().chain;
+        let lower = JointVector::<6>::from_element(-1.0);
+        let upper = JointVector::<6>::from_element(1.0);
+        let mut bad = upper;
+        bad[2] = -1.0; // lower = upper
+        match chain.clone().with_limits(lower, bad) {
+            Err(RobotError::InvalidLimits {
+                joint,
+                lower,
+                upper,
+            }) => {
+                assert_eq!(joint, chain.joints()[2].name());
+                assert_eq!((lower, upper), (-1.0, -1.0));
+            }
+            other => panic!("expected InvalidLimits, got {other:?}"),
+        }
+        bad[2] = -2.0; // lower > upper
+        assert!(matches!(
+            chain.clone().with_limits(lower, bad),
+            Err(RobotError::InvalidLimits { .. })
+        ));
+        for value in [f64::NAN, f64::INFINITY] {
+            let mut bad = upper;
+            bad[4] = value;
+            match chain.clone().with_limits(lower, bad) {
+                Err(RobotError::NonFiniteLimits { joint, .. }) => {
+                    assert_eq!(joint, chain.joints()[4].name());
+                }
+                other => panic!("expected NonFiniteLimits, got {other:?}"),
+            }
+        }
+        let mut bad = lower;
+        bad[0] = f64::NEG_INFINITY;
+        assert!(matches!(
+            chain.with_limits(bad, upper),
+            Err(RobotError::NonFiniteLimits { .. })
+        ));
     }
 }
