@@ -50,6 +50,12 @@ pub enum StudyError {
         /// What is expected.
         expected: &'static str,
     },
+    /// No family of the study has this name.
+    #[error("the study has no family named {name:?}")]
+    UnknownFamily {
+        /// The name asked for.
+        name: String,
+    },
     /// No valid situation was found for a draw.
     #[error("family {family}: draw {draw} found no valid situation in {MAX_ATTEMPTS} attempts (last: {last})")]
     NoValidDraw {
@@ -369,10 +375,8 @@ impl<'a> Study<'a> {
             .families
             .iter()
             .position(|f| f.name == family)
-            .ok_or_else(|| StudyError::InvalidParameter {
-                name: "family",
-                value: f64::NAN,
-                expected: "the name of one of the study's families",
+            .ok_or_else(|| StudyError::UnknownFamily {
+                name: family.to_owned(),
             })?;
         self.valid_situation::<N>(index, draw)
     }
