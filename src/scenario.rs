@@ -44,7 +44,11 @@ use crate::feature::InteractionSource;
 use crate::law::{ControlLaw, LawError};
 use crate::math::JointVector;
 use crate::robot::{builtin, RobotError, SerialChain};
-use crate::sim::{simulate, Drive, Run, Scene, SimError, SimulationParameters};
+use crate::camera::ImagePoint;
+use crate::depth::DepthSource;
+use crate::feature::Observation;
+use crate::measurement::{MeasurementModel, MeasurementParameters};
+use crate::sim::{simulate, Drive, Run, Scene, Sensing, SimError, SimulationParameters};
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
 use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask};
@@ -352,6 +356,13 @@ pub struct Scenario {
     /// The visibility cost (off by default).
     #[serde(default)]
     pub visibility: Option<VisibilitySpec>,
+    /// The camera the controller has against the true one: pixel noise, intrinsics and hand-eye errors,
+    /// distortion, a slower camera, latency ([`MeasurementParameters`]; default: the exact camera).
+    #[serde(default)]
+    pub measurement: MeasurementParameters,
+    /// Where the points' depths come from ([`DepthSource`]); absent: the true depths (the simulation's oracle).
+    #[serde(default)]
+    pub depth: Option<DepthSource>,
     /// The directory relative paths are resolved against (set by [`Scenario::from_file`]).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
@@ -638,7 +649,13 @@ impl Scenario {
         let desired_view = experiment
             .scene
             .view_from(&experiment.desired_camera_from_target)?;
-        let desired = desired_view.observation().map_err(SimError::from)?;
+        let sensing = self.sensing(&experiment.scene, &desired_view.points)?;
+        let desired = match &sensing {
+            // The desired image as the controller's camera reads it (taught at the goal, as on a real robot).
+            Some(sensing) => Observation::new(&sensing.desired_points, None),
+            None => desired_view.observation(),
+        }
+        .map_err(SimError::from)?;
         let goal_depth = experiment.desired_camera_from_target.translation.z;
         let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(goal_depth);
         let desired_depth = self.tasks.area_depth_m.unwrap_or(goal_depth);
@@ -687,6 +704,7 @@ impl Scenario {
             } else {
                 &[]
             },
+            sensing: sensing.as_ref(),
         };
         Ok(simulate(
             &experiment.scene,
@@ -695,6 +713,46 @@ impl Scenario {
             &experiment.start,
             &self.simulation,
         )?)
+    }
+}
+
+impl Scenario {
+    /// The controller's view of the camera when the scenario's camera is not exact or names a depth source: the
+    /// desired image points read through the nominal camera (pixels of the true camera, normalised by the believed
+    /// intrinsics and undistortion), with their desired depths.
+    fn sensing<const N: usize>(
+        &self,
+        scene: &Scene<N>,
+        desired: &[ImagePoint; 4],
+    ) -> Result<Option<Sensing>, ScenarioError> {
+        if self.measurement.is_exact() && self.depth.is_none() {
+            return Ok(None);
+        }
+        let field = |e: &dyn std::fmt::Display| invalid("measurement", e.to_string());
+        if let Some(depth) = &self.depth {
+            depth.validate().map_err(|e| invalid("depth", e.to_string()))?;
+        }
+        let model = MeasurementModel::new(
+            &self.measurement,
+            *scene.intrinsics(),
+            desired.len(),
+            self.simulation.period,
+        )
+        .map_err(|e| field(&e))?;
+        let mut desired_points = *desired;
+        for point in &mut desired_points {
+            let (u, v) = model.true_camera().pixel_of(point.x, point.y);
+            let (x, y) = model
+                .nominal_camera()
+                .normalized_of(u, v)
+                .map_err(|e| field(&e))?;
+            *point = ImagePoint::new(x, y, point.depth);
+        }
+        Ok(Some(Sensing {
+            measurement: self.measurement,
+            depth: self.depth,
+            desired_points,
+        }))
     }
 }
 

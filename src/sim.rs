@@ -23,6 +23,11 @@
 //! prediction, the criteria, and the image points; and the controller's event log.
 
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
+use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
+use crate::measurement::{
+    perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
+};
+use nalgebra::{Point2, Vector6};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
@@ -85,6 +90,9 @@ pub enum SimError {
     /// The joint-limit cost failed.
     #[error(transparent)]
     Cost(#[from] CostError),
+    /// The measurement model or the depth source has invalid parameters.
+    #[error(transparent)]
+    Measurement(#[from] MeasurementError),
 }
 
 /// The world: a robot with its camera, the camera's intrinsics, the target and where it stands.
@@ -559,6 +567,30 @@ impl<const N: usize> Run<N> {
     }
 }
 
+/// Evaluates every task in `context`; the error of the first that fails, as text.
+fn evaluate_all<const N: usize>(
+    tasks: &[VisualTask],
+    context: &VisualContext<'_, N>,
+    values: &mut [TaskValue<N>],
+) -> Result<(), String> {
+    tasks
+        .iter()
+        .zip(values.iter_mut())
+        .try_for_each(|(task, value)| task.evaluate(context, value))
+        .map_err(|e| e.to_string())
+}
+
+/// The camera Jacobian `cVe · eJe(q)` of the mount the controller believes in.
+fn believed_camera_jacobian<const N: usize>(
+    scene: &Scene<N>,
+    believed: &EyeInHand,
+    workspace: &mut KinematicsWorkspace<N>,
+    q: &JointVector<N>,
+) -> Result<KinematicJacobian<N>, SimError> {
+    let state = scene.chain.kinematics(workspace, q)?;
+    Ok(believed.camera_jacobian(state.tip_jacobian()))
+}
+
 /// How a run that used its whole budget ended: stalled on a task that could not come in (D13), or still converging.
 fn budget_outcome<const N: usize>(
     controller: &StackController<N>,
@@ -624,6 +656,132 @@ fn closest_obstacle<const N: usize>(
         .map(|c| (c.link.to_owned(), c.obstacle.to_owned(), c.distance)))
 }
 
+/// What the controller sees of the target when the camera is not exact (a real camera): the measurement model
+/// (pixel noise, intrinsics and hand-eye errors, distortion, a slower camera, latency), where the depths come from,
+/// and the desired image as taught through that camera. Without it the controller sees the true image with the true
+/// depths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensing {
+    /// The camera the controller has, against the true one.
+    pub measurement: MeasurementParameters,
+    /// Where the points' depths come from; `None`: the true depths (a simulation-only oracle).
+    pub depth: Option<DepthSource>,
+    /// The desired image points as the nominal camera reads them, with their desired depths (for
+    /// [`DepthSource::Desired`]).
+    pub desired_points: [ImagePoint; 4],
+}
+
+/// The per-run state of [`Sensing`]: the measurement model, the believed camera mount, the depth estimator and the
+/// believed camera twist (which the estimator and the prediction between frames use).
+struct SensingState<'a> {
+    sensing: &'a Sensing,
+    model: MeasurementModel,
+    believed: EyeInHand,
+    estimator: Option<DepthEstimator>,
+    believed_twist: Vector6<f64>,
+    twist_sum: Vector6<f64>,
+    twist_time: f64,
+    previous_plane: Option<TargetPlane>,
+    measured: [Point2<f64>; 4],
+    points: [ImagePoint; 4],
+}
+
+impl<'a> SensingState<'a> {
+    fn new<const N: usize>(
+        sensing: &'a Sensing,
+        scene: &Scene<N>,
+        period: f64,
+    ) -> Result<Self, SimError> {
+        let depth_error = |e: DepthError| SimError::Measurement(MeasurementError::Depth(e));
+        Ok(Self {
+            sensing,
+            model: MeasurementModel::new(&sensing.measurement, scene.intrinsics, 4, period)?,
+            believed: perturbed_eye_in_hand(&scene.camera, &sensing.measurement)?,
+            estimator: match sensing.depth {
+                Some(source) => source.estimator(4).map_err(depth_error)?,
+                None => None,
+            },
+            believed_twist: Vector6::zeros(),
+            twist_sum: Vector6::zeros(),
+            twist_time: 0.0,
+            previous_plane: None,
+            measured: [Point2::origin(); 4],
+            points: [ImagePoint::default(); 4],
+        })
+    }
+
+    /// The points the controller sees at `time` for the true `view` (normalised through the nominal camera, with the
+    /// depths of the source), or why the image is unusable.
+    fn measure<const N: usize>(&mut self, time: f64, view: &View<N>) -> Result<(), String> {
+        let depths = depths_of(
+            self.sensing,
+            self.estimator.as_ref(),
+            self.previous_plane.as_ref(),
+            view,
+        );
+        let measurement = self
+            .model
+            .measure(time, &view.points, &self.believed_twist, depths)
+            .map_err(|e| e.to_string())?;
+        self.measured.copy_from_slice(measurement.normalized);
+        if let (true, Some(estimator)) = (measurement.fresh, self.estimator.as_mut()) {
+            let mean_twist = if self.twist_time > 0.0 {
+                self.twist_sum / self.twist_time
+            } else {
+                Vector6::zeros()
+            };
+            match estimator.update(measurement.frame_time, &self.measured, &mean_twist) {
+                // Noise larger than the motion: the estimator keeps its previous depths.
+                Ok(_) | Err(DepthError::NonPositiveDepth { .. }) => {}
+                Err(other) => return Err(other.to_string()),
+            }
+            (self.twist_sum, self.twist_time) = (Vector6::zeros(), 0.0);
+        }
+        let depths = depths_of(
+            self.sensing,
+            self.estimator.as_ref(),
+            self.previous_plane.as_ref(),
+            view,
+        );
+        assign_depths(depths, &self.measured, &mut self.points).map_err(|e| e.to_string())?;
+        // A perfect pose estimate, one period late.
+        self.previous_plane = Some(view.plane);
+        Ok(())
+    }
+
+    /// Records the velocity sent over the next `period`: the camera twist the controller believes it makes, for the
+    /// depth estimator (averaged between frames) and the prediction between frames.
+    fn sent<const N: usize>(
+        &mut self,
+        believed_jacobian: &KinematicJacobian<N>,
+        velocity: &JointVector<N>,
+        period: f64,
+    ) {
+        self.believed_twist = believed_jacobian * velocity;
+        self.twist_sum += self.believed_twist * period;
+        self.twist_time += period;
+    }
+}
+
+/// The depths of `sensing`'s source: the estimator's, a constant, the desired image's, the previous plane (a perfect
+/// pose estimate one period late; the current one at the first period), or the true depths of `view` (no source).
+fn depths_of<'b, const N: usize>(
+    sensing: &'b Sensing,
+    estimator: Option<&'b DepthEstimator>,
+    previous_plane: Option<&'b TargetPlane>,
+    view: &'b View<N>,
+) -> Depths<'b> {
+    match (&sensing.depth, estimator) {
+        (_, Some(estimator)) => Depths::Estimated(estimator.depths()),
+        (Some(DepthSource::Constant { depth_m }), None) => Depths::Constant(*depth_m),
+        (Some(DepthSource::Desired), None) => Depths::Desired(&sensing.desired_points),
+        (Some(DepthSource::PreviousPlane), None) => {
+            Depths::Plane(previous_plane.unwrap_or(&view.plane))
+        }
+        (Some(DepthSource::Estimated { .. }) | None, None) => Depths::Desired(&view.points),
+    }
+}
+
 /// How the tasks are driven in a run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Drive<'a> {
@@ -640,6 +798,8 @@ pub struct Drive<'a> {
     pub guard_visibility: bool,
     /// Tasks never removed (D6 (e)): the full method protects the centroid, which keeps the target in the image.
     pub protected_tasks: &'a [usize],
+    /// What the controller sees; `None`: the true image and depths.
+    pub sensing: Option<&'a Sensing>,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
@@ -666,6 +826,13 @@ pub fn simulate<const N: usize>(
         .iter()
         .map(TaskValue::for_task::<VisualContext<'_, N>, _>)
         .collect::<Result<_, _>>()?;
+    // With a real camera, the noise-free task values (the run's errors and its convergence) apart from the measured
+    // ones the controller gets.
+    let mut true_values = values.clone();
+    let mut sensing = drive
+        .sensing
+        .map(|s| SensingState::new(s, scene, parameters.period))
+        .transpose()?;
     let mut controller = StackController::new(drive.controller, &values)?
         .with_protected_tasks(drive.protected_tasks)?;
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
@@ -731,17 +898,27 @@ pub fn simulate<const N: usize>(
             camera_jacobian: &view.camera_jacobian,
         };
         // A target seen so obliquely that a feature is undefined (collinear points, vanishing area) is lost as well.
-        if let Some(error) = tasks
-            .iter()
-            .zip(values.iter_mut())
-            .find_map(|(task, value)| task.evaluate(&context, value).err())
-        {
-            outcome = Some(Outcome::ImageDegenerate {
-                reason: error.to_string(),
-            });
+        let evaluated = match &mut sensing {
+            None => evaluate_all(tasks, &context, &mut values),
+            Some(sensing) => evaluate_all(tasks, &context, &mut true_values).and_then(|()| {
+                sensing.measure(time, &view)?;
+                let measured = Observation::new(&sensing.points, None).map_err(|e| e.to_string())?;
+                let believed_jacobian =
+                    believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)
+                        .map_err(|e| e.to_string())?;
+                let context = VisualContext {
+                    observation: &measured,
+                    camera_jacobian: &believed_jacobian,
+                };
+                evaluate_all(tasks, &context, &mut values)
+            }),
+        };
+        if let Err(reason) = evaluated {
+            outcome = Some(Outcome::ImageDegenerate { reason });
             break;
         }
-        let task_errors: Vec<f64> = values.iter().map(|v| v.error().norm()).collect();
+        let truth = if sensing.is_some() { &true_values } else { &values };
+        let task_errors: Vec<f64> = truth.iter().map(|v| v.error().norm()).collect();
         let mut record = Record {
             iteration,
             time,
@@ -787,6 +964,11 @@ pub fn simulate<const N: usize>(
         record.stacked.extend_from_slice(controller.stacked());
         record.predicted_cost = step.predicted_cost;
         record.criteria = controller.criteria().to_vec();
+        if let Some(sensing) = &mut sensing {
+            let believed_jacobian =
+                believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)?;
+            sensing.sent(&believed_jacobian, &step.velocity, parameters.period);
+        }
         q += step.velocity * parameters.period;
         let hit = scene.limits.violated_joint(&q);
         closest = closest_obstacle(scene, &q)?;
