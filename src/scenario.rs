@@ -38,20 +38,22 @@
 //! ```
 
 use crate::avoidance::{Geometry, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
+use crate::camera::ImagePoint;
 use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
 use crate::controller::{ControllerParameters, RemovalCriterion};
-use crate::feature::InteractionSource;
-use crate::law::{ControlLaw, LawError};
-use crate::math::JointVector;
-use crate::robot::{builtin, RobotError, SerialChain};
-use crate::camera::ImagePoint;
 use crate::depth::DepthSource;
+use crate::feature::InteractionSource;
 use crate::feature::Observation;
+use crate::law::{ControlLaw, LawError};
+use crate::linalg::VelocityInverse;
+use crate::math::JointVector;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
+use crate::robot::{builtin, RobotError, SerialChain};
 use crate::sim::{simulate, Drive, Run, Scene, Sensing, SimError, SimulationParameters};
+use crate::stack::StackParameters;
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
-use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask};
+use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask, VisualTask};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -258,6 +260,11 @@ pub struct TasksSpec {
     /// such as a square marker seen head-on, [D9](crate::theory#d9)), `"paper_invariants"` or `"side_ratios"`.
     #[serde(default)]
     pub fourth_task: FourthTask,
+    /// `δ` of damped least squares for the velocity term of every stack level (same unit as the singular values of
+    /// the projected Jacobians; 0, the default: the truncated pseudo-inverse, [D2](crate::theory#d2)). Bounds the
+    /// velocity near singular configurations, at the price of a small bias there.
+    #[serde(default)]
+    pub damping: f64,
 }
 
 /// The interaction source as written in files.
@@ -660,24 +667,33 @@ impl Scenario {
         let a_priori_depth = self.tasks.a_priori_depth_m.unwrap_or(goal_depth);
         let desired_depth = self.tasks.area_depth_m.unwrap_or(goal_depth);
         let source = self.tasks.interaction.into();
-        let tasks = match kind {
-            RunKind::Classical => vec![classical_task_with(
-                &desired,
-                desired_depth,
-                a_priori_depth,
-                self.tasks.classical_gain,
-                source,
-                self.tasks.fourth_task,
-            )?],
-            _ => paper_tasks_with(
-                &desired,
-                desired_depth,
-                a_priori_depth,
-                self.tasks.gains,
-                source,
-                self.tasks.fourth_task,
-            )?,
+        let tasks_for = |desired: &Observation<'_>| -> Result<Vec<VisualTask>, TaskError> {
+            match kind {
+                RunKind::Classical => Ok(vec![classical_task_with(
+                    desired,
+                    desired_depth,
+                    a_priori_depth,
+                    self.tasks.classical_gain,
+                    source,
+                    self.tasks.fourth_task,
+                )?]),
+                _ => paper_tasks_with(
+                    desired,
+                    desired_depth,
+                    a_priori_depth,
+                    self.tasks.gains,
+                    source,
+                    self.tasks.fourth_task,
+                ),
+            }
         };
+        let tasks = tasks_for(&desired)?;
+        // With a real camera, the same tasks on the true desired image measure the run's noise-free errors.
+        let true_tasks = match &sensing {
+            Some(_) => tasks_for(&desired_view.observation().map_err(SimError::from)?)?,
+            None => Vec::new(),
+        };
+        let sensing = sensing.map(|s| s.with_true_tasks(&true_tasks));
         let avoid = matches!(kind, RunKind::StackGradient | RunKind::StackController);
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
         let max_gain = match kind {
@@ -688,7 +704,17 @@ impl Scenario {
             .avoidance
             .transition_gain
             .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
-        let law = ControlLaw::new(mu, kappa)?;
+        let stack = StackParameters {
+            velocity_inverse: if self.tasks.damping == 0.0 {
+                VelocityInverse::Truncated
+            } else {
+                VelocityInverse::Damped {
+                    damping: self.tasks.damping,
+                }
+            },
+            ..StackParameters::default()
+        };
+        let law = ControlLaw::with_stack_parameters(stack, mu, kappa)?;
         let controller = ControllerParameters {
             allow_removal: kind == RunKind::StackController,
             ..self.controller
@@ -724,13 +750,15 @@ impl Scenario {
         &self,
         scene: &Scene<N>,
         desired: &[ImagePoint; 4],
-    ) -> Result<Option<Sensing>, ScenarioError> {
+    ) -> Result<Option<Sensing<'static>>, ScenarioError> {
         if self.measurement.is_exact() && self.depth.is_none() {
             return Ok(None);
         }
         let field = |e: &dyn std::fmt::Display| invalid("measurement", e.to_string());
         if let Some(depth) = &self.depth {
-            depth.validate().map_err(|e| invalid("depth", e.to_string()))?;
+            depth
+                .validate()
+                .map_err(|e| invalid("depth", e.to_string()))?;
         }
         let model = MeasurementModel::new(
             &self.measurement,
@@ -752,6 +780,7 @@ impl Scenario {
             measurement: self.measurement,
             depth: self.depth,
             desired_points,
+            true_tasks: &[],
         }))
     }
 }

@@ -23,24 +23,24 @@
 //! prediction, the criteria, and the image points; and the controller's event log.
 
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
-use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
-use crate::measurement::{
-    perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
-};
-use nalgebra::{Point2, Vector6};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
     StackEvent, TaskCriteria,
 };
+use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::feature::{FeatureError, Observation};
 use crate::law::{ControlLaw, LawError};
 use crate::math::{JointVector, KinematicJacobian};
+use crate::measurement::{
+    perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
+};
 use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
 use crate::target::{RectangleTarget, TargetError, TargetPlane};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{VisualContext, VisualTask};
 use nalgebra::Isometry3;
+use nalgebra::{Point2, Vector6};
 
 /// Errors of the simulation (distinct from the run's outcome: a joint limit or a lost feature is an outcome, not an
 /// error).
@@ -660,8 +660,8 @@ fn closest_obstacle<const N: usize>(
 /// (pixel noise, intrinsics and hand-eye errors, distortion, a slower camera, latency), where the depths come from,
 /// and the desired image as taught through that camera. Without it the controller sees the true image with the true
 /// depths.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sensing {
+#[derive(Debug, Clone, Copy)]
+pub struct Sensing<'a> {
     /// The camera the controller has, against the true one.
     pub measurement: MeasurementParameters,
     /// Where the points' depths come from; `None`: the true depths (a simulation-only oracle).
@@ -669,12 +669,27 @@ pub struct Sensing {
     /// The desired image points as the nominal camera reads them, with their desired depths (for
     /// [`DepthSource::Desired`]).
     pub desired_points: [ImagePoint; 4],
+    /// The run's tasks with their desired values from the true desired image: the noise-free errors of the run (its
+    /// records and its convergence) are theirs on the true image. Empty: the controller's own tasks.
+    pub true_tasks: &'a [VisualTask],
+}
+
+impl Sensing<'_> {
+    /// The same sensing with `true_tasks`.
+    pub fn with_true_tasks(self, true_tasks: &[VisualTask]) -> Sensing<'_> {
+        Sensing {
+            measurement: self.measurement,
+            depth: self.depth,
+            desired_points: self.desired_points,
+            true_tasks,
+        }
+    }
 }
 
 /// The per-run state of [`Sensing`]: the measurement model, the believed camera mount, the depth estimator and the
 /// believed camera twist (which the estimator and the prediction between frames use).
 struct SensingState<'a> {
-    sensing: &'a Sensing,
+    sensing: &'a Sensing<'a>,
     model: MeasurementModel,
     believed: EyeInHand,
     estimator: Option<DepthEstimator>,
@@ -688,7 +703,7 @@ struct SensingState<'a> {
 
 impl<'a> SensingState<'a> {
     fn new<const N: usize>(
-        sensing: &'a Sensing,
+        sensing: &'a Sensing<'a>,
         scene: &Scene<N>,
         period: f64,
     ) -> Result<Self, SimError> {
@@ -766,7 +781,7 @@ impl<'a> SensingState<'a> {
 /// The depths of `sensing`'s source: the estimator's, a constant, the desired image's, the previous plane (a perfect
 /// pose estimate one period late; the current one at the first period), or the true depths of `view` (no source).
 fn depths_of<'b, const N: usize>(
-    sensing: &'b Sensing,
+    sensing: &'b Sensing<'_>,
     estimator: Option<&'b DepthEstimator>,
     previous_plane: Option<&'b TargetPlane>,
     view: &'b View<N>,
@@ -783,7 +798,7 @@ fn depths_of<'b, const N: usize>(
 }
 
 /// How the tasks are driven in a run.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct Drive<'a> {
     /// The control law (gains, `μ`, `κ`).
     pub law: &'a ControlLaw,
@@ -799,7 +814,7 @@ pub struct Drive<'a> {
     /// Tasks never removed (D6 (e)): the full method protects the centroid, which keeps the target in the image.
     pub protected_tasks: &'a [usize],
     /// What the controller sees; `None`: the true image and depths.
-    pub sensing: Option<&'a Sensing>,
+    pub sensing: Option<&'a Sensing<'a>>,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
@@ -900,9 +915,17 @@ pub fn simulate<const N: usize>(
         // A target seen so obliquely that a feature is undefined (collinear points, vanishing area) is lost as well.
         let evaluated = match &mut sensing {
             None => evaluate_all(tasks, &context, &mut values),
-            Some(sensing) => evaluate_all(tasks, &context, &mut true_values).and_then(|()| {
+            Some(sensing) => {
+                let true_tasks = match sensing.sensing.true_tasks {
+                    [] => tasks,
+                    true_tasks => true_tasks,
+                };
+                evaluate_all(true_tasks, &context, &mut true_values)
+            }
+            .and_then(|()| {
                 sensing.measure(time, &view)?;
-                let measured = Observation::new(&sensing.points, None).map_err(|e| e.to_string())?;
+                let measured =
+                    Observation::new(&sensing.points, None).map_err(|e| e.to_string())?;
                 let believed_jacobian =
                     believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)
                         .map_err(|e| e.to_string())?;
@@ -917,7 +940,11 @@ pub fn simulate<const N: usize>(
             outcome = Some(Outcome::ImageDegenerate { reason });
             break;
         }
-        let truth = if sensing.is_some() { &true_values } else { &values };
+        let truth = if sensing.is_some() {
+            &true_values
+        } else {
+            &values
+        };
         let task_errors: Vec<f64> = truth.iter().map(|v| v.error().norm()).collect();
         let mut record = Record {
             iteration,

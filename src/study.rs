@@ -244,7 +244,15 @@ pub struct MethodSummary {
     pub fallbacks: usize,
     /// The median over runs of `max_k ‖q̇_k − q̇_{k−1}‖`.
     pub median_max_velocity_step: f64,
+    /// Runs that converged with the camera within [`POSE_TOLERANCE_M`] and [`POSE_TOLERANCE_DEG`] of its goal (with a
+    /// measurement model, the run converges on the noise-free errors; this says where the camera really ended).
+    pub converged_within_pose_tolerance: usize,
 }
+
+/// The camera-position tolerance of [`MethodSummary::converged_within_pose_tolerance`] (m).
+pub const POSE_TOLERANCE_M: f64 = 0.002;
+/// The camera-orientation tolerance of [`MethodSummary::converged_within_pose_tolerance`] (degrees).
+pub const POSE_TOLERANCE_DEG: f64 = 0.2;
 
 /// A family's results.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -412,7 +420,9 @@ impl<'a> Study<'a> {
         draw: usize,
     ) -> Result<DrawResult, StudyError> {
         {
-            let (scenario, experiment, rejected) = self.valid_situation::<N>(index, draw)?;
+            let (mut scenario, experiment, rejected) = self.valid_situation::<N>(index, draw)?;
+            // Each draw's camera noise has its own seed, drawn from the draw's stream.
+            scenario.measurement.seed = self.stream(index, draw).random();
             let mut methods = Vec::with_capacity(self.methods.len());
             for &method in &self.methods {
                 let run = scenario.run_experiment(&experiment, method)?;
@@ -462,6 +472,14 @@ impl<'a> Study<'a> {
                         .unwrap_or(0),
                     fallbacks: results.iter().filter(|r| r.fallback).count(),
                     median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
+                    converged_within_pose_tolerance: results
+                        .iter()
+                        .filter(|r| {
+                            r.converged()
+                                && r.camera_translation_error <= POSE_TOLERANCE_M
+                                && r.camera_rotation_error_deg <= POSE_TOLERANCE_DEG
+                        })
+                        .count(),
                 }
             })
             .collect();
