@@ -8,7 +8,7 @@
 //! error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
 
 use servostack::scenario::{Scenario, ScenarioError};
-use servostack::study::{standard_families, Study, StudyError, StudyResult};
+use servostack::study::{standard_families, Slice, Study, StudyResult};
 use std::path::PathBuf;
 
 struct Options {
@@ -20,11 +20,13 @@ struct Options {
     dump: Option<(String, usize)>,
     noise_px: Option<f64>,
     calib: Option<f64>,
+    slice: (usize, usize),
+    grid: usize,
 }
 
 const USAGE: &str =
     "usage: convergence_domain SCENARIO.toml [--family NAME]... [--k K] [--seed S] [--out DIR] \
-                     [--noise PX] [--calib FRAC] [--dump FAMILY:DRAW]";
+                     [--noise PX] [--calib FRAC] [--slice J1,J2] [--grid N] [--dump FAMILY:DRAW]";
 
 fn parse(args: &[String]) -> Result<Options, String> {
     let mut options = Options {
@@ -36,6 +38,8 @@ fn parse(args: &[String]) -> Result<Options, String> {
         dump: None,
         noise_px: None,
         calib: None,
+        slice: (0, 1),
+        grid: 21,
     };
     let mut scenario = None;
     let mut args = args.iter();
@@ -58,6 +62,17 @@ fn parse(args: &[String]) -> Result<Options, String> {
                     .map_err(|_| format!("--seed {v}: not an integer"))?;
             }
             "--out" => options.out = Some(PathBuf::from(value("--out")?)),
+            "--slice" => {
+                let v = value("--slice")?;
+                options.slice = v
+                    .split_once(',')
+                    .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+                    .ok_or_else(|| format!("--slice {v}: expected J1,J2 (joint indices)"))?;
+            }
+            "--grid" => {
+                let v = value("--grid")?;
+                options.grid = v.parse().map_err(|_| format!("--grid {v}: not a count"))?;
+            }
             "--noise" => {
                 let v = value("--noise")?;
                 options.noise_px = Some(
@@ -90,16 +105,32 @@ fn parse(args: &[String]) -> Result<Options, String> {
     Ok(options)
 }
 
-fn run(scenario: &Scenario, study: &Study<'_>) -> Result<StudyResult, StudyError> {
-    match study.run::<6>() {
-        Err(StudyError::Scenario(ScenarioError::Robot(
-            servostack::robot::RobotError::JointCount { found: 7, .. },
-        ))) => study.run::<7>(),
-        other => {
-            let _ = scenario;
-            other
-        }
+/// The joint count of the scenario's robot (6 or 7: the robots this example is built for).
+fn joint_count(scenario: &Scenario) -> Result<usize, ScenarioError> {
+    match scenario.robot_model::<6>() {
+        Ok(_) => Ok(6),
+        Err(_) => scenario.robot_model::<7>().map(|_| 7),
     }
+}
+
+/// The study and the slice, for a robot of `N` joints.
+fn run<const N: usize>(
+    study: &Study<'_>,
+    options: &Options,
+) -> Result<(StudyResult, Slice), Box<dyn std::error::Error>> {
+    let result = study.run::<N>()?;
+    // The slice spans the wide family's perturbation: ±8 cm for a prismatic joint, ±12° for a revolute one.
+    let (chain, _) = study.scenario().robot_model::<N>()?;
+    let half_width = |joint: usize| match chain.joints().get(joint) {
+        Some(j) if !j.kind().is_rotational() => 0.08,
+        _ => 12f64.to_radians(),
+    };
+    let slice = study.slice::<N>(
+        options.slice,
+        (half_width(options.slice.0), half_width(options.slice.1)),
+        options.grid,
+    )?;
+    Ok((result, slice))
 }
 
 fn main() {
@@ -150,8 +181,21 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         println!("wrote {}", path.display());
         return Ok(());
     }
-    let result = run(&scenario, &study)?;
+    let (result, slice) = match joint_count(&scenario)? {
+        6 => run::<6>(&study, &options)?,
+        _ => run::<7>(&study, &options)?,
+    };
     print!("{result}");
+    for (method, outcomes) in &slice.methods {
+        let converged = outcomes.iter().filter(|&&o| o == "converged").count();
+        let valid = outcomes.iter().filter(|&&o| o != "invalid").count();
+        println!(
+            "slice of joints {} and {}: {:<17} converged from {converged} of {valid} valid starts",
+            slice.joints.0,
+            slice.joints.1,
+            method.name()
+        );
+    }
     let out = options
         .out
         .unwrap_or_else(|| PathBuf::from("target/convergence_domain").join(&scenario.name));
@@ -182,6 +226,101 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
             "threads": result.threads,
         }))?,
     )?;
-    println!("study.json and summary.json in {}", out.display());
+    std::fs::write(out.join("slice.json"), serde_json::to_string(&slice)?)?;
+    #[cfg(feature = "plot")]
+    figures::write(&result, &slice, &out)?;
+    println!(
+        "study.json, summary.json, slice.json and the figures in {}",
+        out.display()
+    );
     Ok(())
+}
+
+#[cfg(feature = "plot")]
+mod figures {
+    use servostack::plot::{LinePlot, Marker, OutcomeMap, Series};
+    use servostack::study::{Slice, StudyResult};
+    use std::path::Path;
+
+    /// Every outcome name, in the colour order of the map's legend.
+    const CATEGORIES: [&str; 8] = [
+        "converged",
+        "joint_limit",
+        "feature_lost",
+        "stalled",
+        "max_iterations",
+        "image_degenerate",
+        "collision",
+        "invalid",
+    ];
+
+    /// `success_rate.{png,svg}`: the share of converged draws per method (one curve) and family (abscissa);
+    /// `slice.{png,svg}`: the outcome of every start of the slice, one panel per method.
+    pub fn write(
+        result: &StudyResult,
+        slice: &Slice,
+        out: &Path,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        let Some(first) = result.families.first() else {
+            return Ok(());
+        };
+        let rates = LinePlot {
+            title: format!(
+                "Convergence domain of {} ({} draws per family)",
+                result.scenario, result.draws_per_family
+            ),
+            x_label: "family".into(),
+            y_label: "converged (% of draws)".into(),
+            series: (0..first.methods.len())
+                .map(|m| {
+                    Series::new(
+                        first.methods[m].method.name(),
+                        result.families.iter().enumerate().map(|(i, f)| {
+                            let s = &f.methods[m];
+                            (i as f64, 100.0 * s.converged as f64 / s.draws.max(1) as f64)
+                        }),
+                    )
+                })
+                .collect(),
+            markers: result
+                .families
+                .iter()
+                .enumerate()
+                .map(|(i, f)| Marker::new(i as f64, f.family.name.clone()))
+                .collect(),
+            y_range: Some((0.0, 100.0)),
+            ..LinePlot::default()
+        };
+        rates.render(out, "success_rate")?;
+        let map = OutcomeMap {
+            title: format!(
+                "Outcomes over starts: joints {} and {} of {}",
+                slice.joints.0, slice.joints.1, result.scenario
+            ),
+            x_label: format!("q{} (m or rad)", slice.joints.0),
+            y_label: format!("q{} (m or rad)", slice.joints.1),
+            x_values: slice.x_values.clone(),
+            y_values: slice.y_values.clone(),
+            categories: CATEGORIES.iter().map(|c| c.to_string()).collect(),
+            panels: slice
+                .methods
+                .iter()
+                .map(|(method, outcomes)| {
+                    let cells = outcomes
+                        .iter()
+                        .map(|o| {
+                            CATEGORIES
+                                .iter()
+                                .position(|c| c == o)
+                                .unwrap_or(CATEGORIES.len() - 1)
+                        })
+                        .collect();
+                    (method.name().to_owned(), cells)
+                })
+                .collect(),
+            size: (1800, 520),
+        };
+        map.render(out, "slice")?;
+        Ok(())
+    }
 }

@@ -271,6 +271,19 @@ pub struct FamilyResult {
     pub draws: Vec<DrawResult>,
 }
 
+/// The outcomes over a 2-D slice of starting configurations ([`Study::slice`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Slice {
+    /// The two joints varied.
+    pub joints: (usize, usize),
+    /// The values of the first joint (m or rad), increasing.
+    pub x_values: Vec<f64>,
+    /// The values of the second joint (m or rad), increasing.
+    pub y_values: Vec<f64>,
+    /// Per method, the outcome name of every start (row-major: the second joint outer), or `invalid`.
+    pub methods: Vec<(RunKind, Vec<&'static str>)>,
+}
+
 /// The results of a study.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StudyResult {
@@ -320,6 +333,11 @@ impl<'a> Study<'a> {
         })
     }
 
+    /// The scenario studied.
+    pub fn scenario(&self) -> &Scenario {
+        self.scenario
+    }
+
     /// Restricts the methods run on every draw (the full method and its baselines by default).
     pub fn with_methods(mut self, methods: &[RunKind]) -> Self {
         self.methods = methods.to_vec();
@@ -356,6 +374,80 @@ impl<'a> Study<'a> {
             iterations,
             seconds: clock.elapsed().as_secs_f64(),
             threads: rayon::current_num_threads(),
+        })
+    }
+
+    /// The outcomes of every method over a 2-D slice of starting configurations: the scenario's start with joints
+    /// `joints.0` and `joints.1` moved over `points × points` evenly spaced offsets within `±half_widths` (m or rad of
+    /// each joint), on all cores. A start outside the limits or with the target out of the image is `invalid`.
+    ///
+    /// # Errors
+    /// [`StudyError::InvalidParameter`] for a joint index `≥ N`, non-finite or negative half-widths or fewer than 2
+    /// points; model failures.
+    pub fn slice<const N: usize>(
+        &self,
+        joints: (usize, usize),
+        half_widths: (f64, f64),
+        points: usize,
+    ) -> Result<Slice, StudyError> {
+        let invalid = |name, value: f64, expected| {
+            Err(StudyError::InvalidParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if joints.0 >= N || joints.1 >= N || joints.0 == joints.1 {
+            return invalid(
+                "slice joints",
+                joints.1 as f64,
+                "two distinct joint indices below N",
+            );
+        }
+        for width in [half_widths.0, half_widths.1] {
+            if !(width.is_finite() && width > 0.0) {
+                return invalid("slice half-width", width, "finite and > 0");
+            }
+        }
+        if !(2..=1000).contains(&points) {
+            return invalid("slice points", points as f64, "2 to 1000");
+        }
+        let offsets = |half: f64| -> Vec<f64> {
+            (0..points)
+                .map(|k| -half + 2.0 * half * k as f64 / (points - 1) as f64)
+                .collect()
+        };
+        let (x_offsets, y_offsets) = (offsets(half_widths.0), offsets(half_widths.1));
+        let cells: Vec<Vec<&'static str>> = (0..points * points)
+            .into_par_iter()
+            .map(|k| {
+                let mut scenario = self.scenario.clone();
+                scenario.start.joints[joints.0] += x_offsets[k % points];
+                scenario.start.joints[joints.1] += y_offsets[k / points];
+                let experiment = match scenario.experiment::<N>() {
+                    Ok(experiment) => experiment,
+                    Err(ScenarioError::Invalid { .. }) => {
+                        return Ok(vec!["invalid"; self.methods.len()])
+                    }
+                    Err(error) => return Err(StudyError::from(error)),
+                };
+                self.methods
+                    .iter()
+                    .map(|&method| Ok(scenario.run_experiment(&experiment, method)?.outcome.name()))
+                    .collect()
+            })
+            .collect::<Result<_, StudyError>>()?;
+        let start = |joint: usize| self.scenario.start.joints[joint];
+        Ok(Slice {
+            joints,
+            x_values: x_offsets.iter().map(|o| start(joints.0) + o).collect(),
+            y_values: y_offsets.iter().map(|o| start(joints.1) + o).collect(),
+            methods: self
+                .methods
+                .iter()
+                .enumerate()
+                .map(|(m, &method)| (method, cells.iter().map(|c| c[m]).collect()))
+                .collect(),
         })
     }
 

@@ -51,6 +51,7 @@
 //! ```
 
 mod clip;
+mod grid;
 mod line;
 mod render;
 mod style;
@@ -59,6 +60,7 @@ mod tests;
 mod trajectory;
 mod validate;
 
+pub use grid::OutcomeMap;
 pub use line::{HorizontalLine, LinePlot, Marker, Scale, Series};
 pub use trajectory::{Trajectory, TrajectoryPlot};
 
