@@ -113,3 +113,106 @@ fn full_method_removes_a_n_during_the_fourth_task_puts_it_back_and_converges() {
         ["centroid", "angle", "area", "third_order"]
     );
 }
+
+/// D14 on the reference scenario: at every change of the full method the velocity sent does not jump, and the next
+/// step is the first step of the transition's ramp, at least half of `(1 − e^{−μΔt})` times the law's jump (it is
+/// zero if the velocity is held one period — a transition restarted twice — and the whole jump without the term).
+#[test]
+fn full_method_velocity_ramps_at_every_change() {
+    let (scenario, _) = scenario();
+    let run = run(RunKind::StackController);
+    let mu = 10.0 * scenario.tasks.gains.iter().copied().fold(0.0, f64::max);
+    let ramp = 1.0 - (-mu * scenario.simulation.period).exp();
+    let steps = run.velocity_steps();
+    let continuity = run.event_continuity();
+    let mut checked = 0;
+    for (i, change) in continuity.iter().enumerate() {
+        assert!(change.jump <= 1e-9, "{change:?}");
+        let next_is_a_change = continuity
+            .get(i + 1)
+            .is_some_and(|n| n.iteration == change.iteration + 1);
+        if change.law_jump > 1e-3 && !next_is_a_change && change.iteration > 0 {
+            let first_step = steps[change.iteration + 1];
+            assert!(
+                first_step >= 0.5 * ramp * change.law_jump,
+                "{change:?}: first step {first_step:e}"
+            );
+            assert!(
+                first_step <= 1.5 * ramp * change.law_jump + 1e-2,
+                "{change:?}: first step {first_step:e}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 3, "{continuity:?}");
+}
+
+/// The paper's four outcomes do not hang on one value of a tuned parameter: with h_max, κ, ε_add or Z* (the depth of
+/// the size feature a_n) moved by ±30 %, the classical law and the two push-only stacks still hit the joint limit,
+/// the stack with gradient only after the fourth task is pushed, and the full method still converges within the
+/// limits after removing and putting back a task.
+#[test]
+fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
+    let (base, _) = scenario();
+    for factor in [0.7, 1.3] {
+        let variants: [(&str, Box<dyn Fn(&mut Scenario)>); 4] = [
+            (
+                "h_max",
+                Box::new(move |s: &mut Scenario| {
+                    s.controller.removal_threshold =
+                        s.controller.removal_threshold.map(|h| h * factor)
+                }),
+            ),
+            (
+                "kappa",
+                Box::new(move |s: &mut Scenario| s.avoidance.gain *= factor),
+            ),
+            (
+                "eps_add",
+                Box::new(move |s: &mut Scenario| s.controller.settle_velocity *= factor),
+            ),
+            (
+                "z_star",
+                Box::new(move |s: &mut Scenario| {
+                    s.tasks.area_depth_m =
+                        Some(factor * s.desired.camera_from_target.translation_m[2])
+                }),
+            ),
+        ];
+        for (name, change) in variants {
+            let mut scenario = base.clone();
+            change(&mut scenario);
+            let experiment = scenario.experiment::<6>().unwrap();
+            let outcome = |kind| scenario.run_experiment(&experiment, kind).unwrap();
+            let label = format!("{name} × {factor}");
+            assert_eq!(
+                outcome(RunKind::Classical).outcome.name(),
+                "joint_limit",
+                "{label}"
+            );
+            let stack = outcome(RunKind::Stack);
+            assert_eq!(
+                stacked_at_hit(&stack),
+                ["centroid", "angle", "area"],
+                "{label}"
+            );
+            let gradient = outcome(RunKind::StackGradient);
+            assert_eq!(
+                stacked_at_hit(&gradient),
+                ["centroid", "angle", "area", "third_order"],
+                "{label}"
+            );
+            let full = outcome(RunKind::StackController);
+            assert_eq!(full.outcome, Outcome::Converged, "{label}");
+            assert!(full.min_normalized_margin() > 0.0, "{label}");
+            let removed: Vec<usize> = full.events_of(EventKind::Remove).map(|e| e.task).collect();
+            assert!(!removed.is_empty(), "{label}");
+            for task in removed {
+                assert!(
+                    full.events_of(EventKind::Reinsert).any(|e| e.task == task),
+                    "{label}: task {task} not put back"
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,167 @@
+//! The convergence-domain study on small seeded samples: the full method reaches its goal from the perturbed starts,
+//! never does worse than the stack with projected gradient on the same draw, removes few tasks, and every run that
+//! does not converge says why. Outcomes over draws, not numbers copied from a run.
+
+use servostack::scenario::{RunKind, Scenario};
+use servostack::study::{standard_families, Family, Perturbation, Study, StudyError};
+use std::path::Path;
+
+fn scenario(name: &str) -> Scenario {
+    let path = format!(
+        "{}/assets/scenarios/{name}.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    Scenario::from_file(Path::new(&path)).unwrap()
+}
+
+fn families(names: &[&str]) -> Vec<Family> {
+    standard_families()
+        .into_iter()
+        .filter(|f| names.contains(&f.name.as_str()))
+        .collect()
+}
+
+#[test]
+fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_gradient() {
+    let scenario = scenario("paper_afma6");
+    let study = Study::new(&scenario, families(&["mild", "strong"]), 8, 5).unwrap();
+    let result = study.run::<6>().unwrap();
+    for family in &result.families {
+        let full = family
+            .methods
+            .iter()
+            .find(|m| m.method == RunKind::StackController)
+            .unwrap();
+        assert!(full.converged >= 7, "{}: {full:?}", family.family.name);
+        assert!(
+            full.median_removals <= 2.0,
+            "{}: {full:?}",
+            family.family.name
+        );
+        assert_eq!(family.full_method_worse_than_stack_gradient, 0);
+        for draw in &family.draws {
+            for method in &draw.methods {
+                // A run that spent its budget names its reason.
+                if matches!(method.outcome, "stalled" | "max_iterations") {
+                    assert!(method.reason.as_deref().is_some_and(|r| !r.is_empty()));
+                }
+            }
+        }
+    }
+}
+
+/// On the UR5e with a restricted elbow, starts perturbed or the goal moved: the full method converges in at least
+/// as many draws as each of the laws it switches between, and covers the draws where the stack with gradient does.
+#[test]
+fn on_the_ur5e_the_full_method_covers_its_baselines() {
+    let scenario = scenario("ur5e_limits");
+    let study = Study::new(&scenario, families(&["strong", "goal_4cm"]), 8, 9).unwrap();
+    let result = study.run::<6>().unwrap();
+    for family in &result.families {
+        let converged = |kind| {
+            family
+                .methods
+                .iter()
+                .find(|m| m.method == kind)
+                .unwrap()
+                .converged
+        };
+        let full = converged(RunKind::StackController);
+        for baseline in [RunKind::Classical, RunKind::Stack, RunKind::StackGradient] {
+            assert!(
+                full >= converged(baseline),
+                "{}: {baseline:?}",
+                family.family.name
+            );
+        }
+        assert_eq!(family.full_method_worse_than_stack_gradient, 0);
+    }
+}
+
+/// The same seed gives the same draws and outcomes (whatever thread runs a draw); another seed other draws.
+#[test]
+fn a_study_is_reproducible_from_its_seed() {
+    let scenario = scenario("paper_afma6");
+    let run = |seed| {
+        Study::new(&scenario, families(&["mild"]), 3, seed)
+            .unwrap()
+            .with_methods(&[RunKind::Classical])
+            .run::<6>()
+            .unwrap()
+    };
+    let (a, b, c) = (run(3), run(3), run(4));
+    assert_eq!(a.families[0].draws, b.families[0].draws);
+    assert_ne!(a.families[0].draws[0].start, c.families[0].draws[0].start);
+    // A mild draw moves every joint of the start by at most 2 cm or 3°.
+    let start = &scenario.start.joints;
+    for draw in &a.families[0].draws {
+        for (k, (drawn, nominal)) in draw.start.iter().zip(start).enumerate() {
+            let half = if k < 3 { 0.02 } else { 3f64.to_radians() };
+            assert!((drawn - nominal).abs() <= half + 1e-12, "joint {k}");
+        }
+    }
+}
+
+/// A slice of starts: every cell is run, and a start below the lower limit of joint 2 is reported invalid.
+#[test]
+fn a_slice_marks_invalid_starts_and_runs_the_others() {
+    let scenario = scenario("paper_afma6");
+    let study = Study::new(&scenario, Vec::new(), 1, 1)
+        .unwrap()
+        .with_methods(&[RunKind::Classical, RunKind::StackController]);
+    let slice = study.slice::<6>((0, 2), (0.02, 0.04), 3).unwrap();
+    let lower = -0.5001; // joint 2's lower limit (the Afma6 built-in)
+    for (method, outcomes) in &slice.methods {
+        assert_eq!(outcomes.len(), 9, "{method:?}");
+        for (k, outcome) in outcomes.iter().enumerate() {
+            let q2 = slice.y_values[k / 3];
+            assert_eq!(
+                *outcome == "invalid",
+                q2 < lower,
+                "{method:?} cell {k} (q2 = {q2})"
+            );
+        }
+    }
+}
+
+#[test]
+fn invalid_study_parameters_are_named() {
+    let scenario = scenario("paper_afma6");
+    assert!(matches!(
+        Study::new(&scenario, standard_families(), 0, 1),
+        Err(StudyError::InvalidParameter { name: "draws", .. })
+    ));
+    let negative = Family::new(
+        "bad",
+        Perturbation::Start {
+            translation_m: -0.01,
+            rotation_deg: 1.0,
+        },
+    );
+    assert!(matches!(
+        Study::new(&scenario, vec![negative], 1, 1),
+        Err(StudyError::InvalidParameter {
+            name: "translation_m",
+            ..
+        })
+    ));
+    let study = Study::new(&scenario, families(&["mild"]), 1, 1).unwrap();
+    assert!(matches!(
+        study.situation::<6>("nowhere", 0),
+        Err(StudyError::UnknownFamily { name }) if name == "nowhere"
+    ));
+    assert!(matches!(
+        study.slice::<6>((0, 6), (0.01, 0.01), 3),
+        Err(StudyError::InvalidParameter {
+            name: "slice joints",
+            ..
+        })
+    ));
+    assert!(matches!(
+        study.slice::<6>((0, 1), (f64::NAN, 0.01), 3),
+        Err(StudyError::InvalidParameter {
+            name: "slice half-width",
+            ..
+        })
+    ));
+}
