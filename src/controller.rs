@@ -30,11 +30,15 @@
 //! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`):
 //!    * a removed task is **put back** (D7) at its original priority when it has stayed out for its dwell time
 //!      (`dwell · 2^{k−1}` after its `k`-th removal: each new removal doubles the wait) and the law with it back,
-//!      predicted over the longer horizon `n_back · T`, keeps `h(q̂) ≤ r_back · h_max` (**hysteresis**: a lower
-//!      threshold than the removal's);
-//!    * if a removed task cannot come back for `stall_timeout` seconds of settled robot, the controller **falls back**
-//!      (D13): the task is put back without the test, and no task is removed for the rest of the run — from there on
-//!      the law is the stack with projected gradient. The event log says so ([`EventKind::Fallback`]);
+//!      predicted over the task's own time constant `n_back/λ_i`, keeps `h(q̂) ≤ r_back · h_max` (**hysteresis**: a
+//!      lower threshold than the removal's);
+//!    * when no removed task can come back, the next task of the list is **pushed** if one remains (the paper's `e4`
+//!      achieved while `e3` is out); otherwise a **swap** is tried: a removed task back and a stacked one out in one
+//!      transition, if the prediction with that exchange passes the same test;
+//!    * if a removed task is still refused `stall_timeout` seconds after its first refused test, the controller
+//!      **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
+//!      — from there on the law is the stack with projected gradient. The event log says so
+//!      ([`EventKind::Fallback`]);
 //!    * when no task is out, the next task of the list is **pushed** (D5).
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
@@ -171,8 +175,8 @@ pub struct ControllerParameters {
     pub reinsertion_dwell: f64,
     /// A task removed this many times is no longer a removal candidate (D7; default 4).
     pub max_removals: u32,
-    /// `T_stall` (s): a removed task that cannot come back while the robot stays settled this long is put back anyway,
-    /// and removals stop (D13 fallback; default 5 s).
+    /// `T_stall` (s): a removed task still refused this long after its first refused re-insertion test is put back
+    /// anyway, and removals stop (D13 fallback; default 5 s).
     pub stall_timeout: f64,
     /// Whether tasks may be removed at all (`false`: push-only, as the paper's runs 2 and 3).
     pub allow_removal: bool,
@@ -478,8 +482,8 @@ pub struct StackController<const N: usize> {
     /// Per task: how many times it was removed, and when last.
     removal_count: Vec<u32>,
     removed_at: Vec<f64>,
-    /// The time since which the robot has been settled while a task waits to come back.
-    settled_since: Option<f64>,
+    /// The time of the first refused re-insertion test since the last change (the stall clock of D13).
+    refused_since: Option<f64>,
     /// The last re-insertion test: (task, predicted cost, threshold).
     last_reinsertion_test: Option<(usize, f64, f64)>,
     /// D13: removals stopped after a fallback.
@@ -545,7 +549,7 @@ impl<const N: usize> StackController<N> {
             protected: vec![false; count],
             removal_count: vec![0; count],
             removed_at: vec![0.0; count],
-            settled_since: None,
+            refused_since: None,
             last_reinsertion_test: None,
             fallback: false,
             change_pending: false,
@@ -831,7 +835,7 @@ impl<const N: usize> StackController<N> {
 
     fn record(&mut self, event: StackEvent) {
         self.last_change_time = event.time;
-        self.settled_since = None;
+        self.refused_since = None;
         self.events.push(event);
     }
 
@@ -1039,7 +1043,6 @@ impl<const N: usize> StackController<N> {
         result: &ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
         if !self.settled(law, time, result.stack_velocity_norm) {
-            self.settled_since = None;
             return Ok(None);
         }
         if self.removed.is_empty() {
@@ -1146,7 +1149,7 @@ impl<const N: usize> StackController<N> {
                 return Ok(Some(EventKind::Remove));
             }
         }
-        let waiting_since = *self.settled_since.get_or_insert(time);
+        let waiting_since = *self.refused_since.get_or_insert(time);
         if robust && time - waiting_since >= self.parameters.stall_timeout {
             // D13: the first removed task comes back without the test; from now on no task is removed.
             self.fallback = true;
