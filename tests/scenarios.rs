@@ -75,6 +75,16 @@ fn on_the_ur5e_with_a_restricted_elbow_the_full_method_removes_and_reinserts() {
     ));
 }
 
+#[test]
+fn on_the_rail7_chain_with_a_restricted_shoulder_the_full_method_removes_and_reinserts() {
+    let runs = limit_story::<7>("rail7_limits.toml", 2);
+    // Without avoidance the stack hits the shoulder limit too.
+    assert!(matches!(
+        runs[1].outcome,
+        Outcome::JointLimit { joint: 2, .. }
+    ));
+}
+
 /// The text of the UR5e scenario with one line replaced (the line must exist).
 fn edited(from: &str, to: &str) -> String {
     assert!(UR5E.contains(from), "fixture line not found: {from}");
