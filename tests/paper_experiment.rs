@@ -147,6 +147,9 @@ fn full_method_velocity_ramps_at_every_change() {
     assert!(checked >= 3, "{continuity:?}");
 }
 
+/// A change of one parameter of a scenario.
+type ScenarioChange = Box<dyn Fn(&mut Scenario)>;
+
 /// The paper's four outcomes do not hang on one value of a tuned parameter: with h_max, κ, ε_add or Z* (the depth of
 /// the size feature a_n) moved by ±30 %, the classical law and the two push-only stacks still hit the joint limit,
 /// the stack with gradient only after the fourth task is pushed, and the full method still converges within the
@@ -155,7 +158,7 @@ fn full_method_velocity_ramps_at_every_change() {
 fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
     let (base, _) = scenario();
     for factor in [0.7, 1.3] {
-        let variants: [(&str, Box<dyn Fn(&mut Scenario)>); 4] = [
+        let variants: [(&str, ScenarioChange); 4] = [
             (
                 "h_max",
                 Box::new(move |s: &mut Scenario| {
