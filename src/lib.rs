@@ -18,6 +18,7 @@ pub mod plot;
 pub mod report;
 pub mod robot;
 pub mod scenario;
+pub mod servo;
 pub mod sim;
 pub mod stack;
 pub mod study;
