@@ -181,24 +181,25 @@ pub enum ServoError {
 }
 
 /// ViSP's adaptive gain (`vpAdaptiveGain::initStandard`): `λ(x) = a e^{−b x} + c` with `a = λ(0) − λ(∞)`,
-/// `b = λ'(0)/a`, `c = λ(∞)`, evaluated at `x = ‖e‖∞` (ViSP's `vpAdaptiveGain::operator()(vpColVector)`), so the gain is
-/// `λ(0)` near the goal and `λ(∞)` far from it. `λ'(0)` is given as ViSP takes it: the magnitude of the slope at 0
-/// (the derivative there is `−a b = −λ'(0)` for `λ(0) > λ(∞)`).
+/// `b = λ'(0)/a`, `c = λ(∞)`, evaluated at `x = ‖e_i‖∞` (ViSP's `vpAdaptiveGain::operator()(vpColVector)`), so the gain
+/// is `λ(0)` at the goal and tends to `λ(∞)` far from it. `λ'(0)` is the parameter as ViSP takes it; the derivative of
+/// `λ` at 0 is `−a b = −λ'(0)`: a gain that decreases with the error (ViSP's use: faster near the goal) has
+/// `λ(0) > λ(∞)` and `λ'(0) > 0`; one that increases with the error (slower near the goal, which filters pixel noise)
+/// has `λ(0) < λ(∞)` and `λ'(0) < 0`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AdaptiveGain {
     a: f64,
     b: f64,
     c: f64,
-    at_zero: f64,
 }
 
 impl AdaptiveGain {
-    /// `λ(0)` (s⁻¹, > 0), `λ(∞)` (s⁻¹, > 0), `λ'(0)` (s⁻¹ per unit of error, ≥ 0; 0 or `λ(0) = λ(∞)`: the constant
-    /// `λ(0)`).
+    /// `λ(0)` (s⁻¹, > 0), `λ(∞)` (s⁻¹, > 0), `λ'(0)` (s⁻¹ per unit of `‖e‖∞`, of the sign of `λ(0) − λ(∞)`; 0, or
+    /// `λ(0) = λ(∞)`, gives the constant `λ(0)`).
     ///
     /// # Errors
-    /// [`ServoError::InvalidParameter`] for a non-finite or non-positive gain, a negative or non-finite slope, or a slope
-    /// with `λ(0) < λ(∞)` (the gain would grow without bound).
+    /// [`ServoError::InvalidParameter`] for a non-finite or non-positive gain, a non-finite slope, or a slope of the
+    /// other sign than `λ(0) − λ(∞)` (`b < 0`: the gain would leave `[min, max]` of `λ(0), λ(∞)` without bound).
     pub fn new(at_zero: f64, at_infinity: f64, slope_at_zero: f64) -> Result<Self, ServoError> {
         let invalid = |name, value, expected| ServoError::InvalidParameter {
             name,
@@ -210,24 +211,30 @@ impl AdaptiveGain {
                 return Err(invalid(name, value, "finite and > 0 (s⁻¹)"));
             }
         }
-        if !(slope_at_zero.is_finite() && slope_at_zero >= 0.0) {
-            return Err(invalid("λ'(0)", slope_at_zero, "finite and ≥ 0"));
+        if !slope_at_zero.is_finite() {
+            return Err(invalid("λ'(0)", slope_at_zero, "finite"));
         }
         let a = at_zero - at_infinity;
-        if slope_at_zero > 0.0 && a < 0.0 {
+        if a == 0.0 || slope_at_zero == 0.0 {
+            return Ok(Self {
+                a: 0.0,
+                b: 0.0,
+                c: at_zero,
+            });
+        }
+        let b = slope_at_zero / a;
+        if !(b.is_finite() && b > 0.0) {
             return Err(invalid(
                 "λ'(0)",
                 slope_at_zero,
-                "0 when λ(0) < λ(∞) (b = λ'(0)/a must be ≥ 0)",
+                "of the sign of λ(0) − λ(∞) (b = λ'(0)/(λ(0) − λ(∞)) must be > 0)",
             ));
         }
-        let (a, b) = if a == 0.0 || slope_at_zero == 0.0 {
-            (0.0, 0.0)
-        } else {
-            (a, slope_at_zero / a)
-        };
-        let c = if a == 0.0 { at_zero } else { at_infinity };
-        Ok(Self { a, b, c, at_zero })
+        Ok(Self {
+            a,
+            b,
+            c: at_infinity,
+        })
     }
 
     /// `λ(x) = a e^{−b x} + c` (s⁻¹) at `x ≥ 0` (a non-finite `x` gives `λ(∞)`).
@@ -241,7 +248,7 @@ impl AdaptiveGain {
 
     /// The largest gain it takes, `max(λ(0), λ(∞))` (s⁻¹), for the transition gain `μ = 10 max λ`.
     pub fn max_gain(&self) -> f64 {
-        self.at_zero.max(self.c)
+        (self.a + self.c).max(self.c)
     }
 }
 
@@ -386,6 +393,10 @@ pub struct ServoOutput<const N: usize> {
     pub stack_len: usize,
     /// The stack change made this period (push, removal, re-insertion, fallback), if any.
     pub event: Option<EventKind>,
+    /// `‖q̇_n‖`, the norm of the stack velocity without transition and avoidance (mixed rad/s and m/s): the controller
+    /// pushes the next task, or tries to put a removed one back, once it is below
+    /// [`ControllerParameters::settle_velocity`] ([D5](crate::theory#d5)).
+    pub stack_velocity_norm: f64,
     /// Every task stacked and `‖e_i‖ < convergence_error` for each.
     pub converged: bool,
     /// The depths used (m), one per corner.
@@ -551,6 +562,7 @@ impl<const N: usize> VisualServo<N> {
                 stack: [0; MAX_TASKS],
                 stack_len: 0,
                 event: None,
+                stack_velocity_norm: f64::NAN,
                 converged: false,
                 depths: [f64::NAN; 4],
                 camera_twist: Vector6::zeros(),
@@ -770,6 +782,7 @@ impl<const N: usize> VisualServo<N> {
         output.task_gains = task_gains;
         output.error_norm = task_errors.iter().map(|e| e * e).sum::<f64>().sqrt();
         output.event = step.event;
+        output.stack_velocity_norm = step.stack_velocity_norm;
         let stacked = self.controller.stacked();
         output.stack_len = stacked.len().min(MAX_TASKS);
         output.stack[..output.stack_len].copy_from_slice(&stacked[..output.stack_len]);

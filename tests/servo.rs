@@ -328,6 +328,13 @@ fn adaptive_gain_matches_visp_formula() {
         AdaptiveGain::new(0.4, 4.0, 30.0),
         Err(ServoError::InvalidParameter { .. })
     ));
+    // A gain growing with the error: λ'(0) < 0 (the derivative at 0 is −λ'(0) > 0).
+    let growing = AdaptiveGain::new(0.1, 0.5, -2.0).unwrap();
+    let (a, b, c) = (-0.4, -2.0 / -0.4, 0.5);
+    for x in [0.0, 0.2, 3.0] {
+        assert!((growing.value(x) - (a * f64::exp(-b * x) + c)).abs() <= 1e-15);
+    }
+    assert!(growing.value(0.2) > growing.value(0.0));
     assert!(matches!(
         AdaptiveGain::new(4.0, 0.4, f64::NAN),
         Err(ServoError::InvalidParameter { .. })
