@@ -2,28 +2,28 @@
 //! and one call per control period that turns the measured corners and joint positions into the joint velocity to
 //! send.
 //!
-//! ```no_run
-//! use servostack::servo::{Corners, DesiredImage, ServoConfig, VisualServo};
+//! ```rust,no_run
+//! use servostack::{camera::CalibratedCamera, robot::builtin, servo::*, target::RectangleTarget};
 //! # fn read_corners() -> Corners { [None; 4] }
-//! # fn read_joints() -> servostack::math::JointVector<6> { Default::default() }
+//! # fn read_joints() -> servostack::math::JointVector<6> { nalgebra::zero() }
 //! # fn send_velocity(_: &servostack::math::JointVector<6>) {}
-//! let robot = servostack::robot::builtin::afma6()?;
-//! let camera = servostack::camera::CalibratedCamera::from_yaml_file("camera.yaml".as_ref())?;
-//! let target = servostack::target::RectangleTarget::new(0.2, 0.1)?; // m
-//! let goal = DesiredImage::Pose(nalgebra::Isometry3::translation(0.0, 0.0, 0.5)); // cdMo
-//! let mut servo = VisualServo::new(ServoConfig::new(robot.chain, robot.camera, camera, target, goal))?;
-//! let (clock, mut velocity) = (std::time::Instant::now(), nalgebra::zero());
+//! let (robot, camera) = (builtin::afma6()?, CalibratedCamera::from_yaml_file("camera.yaml".as_ref())?);
+//! let goal = DesiredImage::Pose(nalgebra::Isometry3::translation(0.0, 0.0, 0.5)); // cdMo (m)
+//! let config = ServoConfig::new(robot.chain, robot.camera, camera, RectangleTarget::new(0.2, 0.1)?, goal);
+//! let (mut servo, clock, mut velocity) = (VisualServo::new(config)?, std::time::Instant::now(), nalgebra::zero());
 //! loop {
-//!     let (corners, q) = (read_corners(), read_joints()); // DRIVER: read the four corners (px) and q (rad, m)
+//!     let (corners, q) = (read_corners(), read_joints()); // DRIVER: read the corners (px) and joints (rad, m)
 //!     match servo.step(clock.elapsed().as_secs_f64(), &corners, &q) {
 //!         Ok(out) if out.converged => break,
 //!         Ok(out) => velocity = out.velocity,
 //!         Err(error) => eprintln!("{error}: holding the last velocity"), // a bad frame
 //!     }
-//!     send_velocity(&velocity); // DRIVER: send the joint velocity (rad/s, m/s)
+//!     send_velocity(&velocity); // DRIVER: send the joint velocities (rad/s, m/s)
 //! }
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+//!
+//! (The same loop is [`crate::guide::hardware_loop`].)
 //!
 //! # One period ([`VisualServo::step`])
 //!
