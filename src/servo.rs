@@ -48,8 +48,10 @@
 //!    ([`StackController::set_sent_velocity`]), so the next stack change blends from what the robot received
 //!    ([D1](crate::theory#d1)): continuity holds for the robot, not for a velocity it never got.
 //!
-//! A step allocates nothing on the heap once built (an event of the stack appends to the controller's log, which is
-//! preallocated; errors carrying a task name allocate their message).
+//! A step allocates nothing on the heap once built, with three exceptions outside the steady state: a removal copies
+//! its report (the dominant cost's name, every task's criteria) into the controller's event log; the log grows beyond
+//! its preallocated four events per task; an error naming a task allocates its message. Pushes and re-insertions
+//! allocate nothing.
 
 use crate::avoidance::{CostError, JointLimits};
 use crate::camera::{CalibratedCamera, CameraError, EyeInHand, ImagePoint};

@@ -642,3 +642,124 @@ fn steady_state_periods_allocate_nothing() {
         );
     }
 }
+
+/// Desired pixels taught through the camera, with the desired depth, give the same servo as the desired pose they are
+/// taught from (same desired points up to the undistortion's tolerance, same velocities) when the depths are the
+/// constant `Z*` (taught pixels carry no per-point depth).
+#[test]
+fn taught_desired_pixels_match_the_desired_pose() {
+    let (scenario, experiment) = paper();
+    let camera = distorted_camera(&experiment.scene);
+    let mut from_pose = paper_config(&scenario, &experiment, camera);
+    from_pose.depth = DepthSource::Constant {
+        depth_m: experiment.desired_camera_from_target.translation.z,
+    };
+    let by_pose = VisualServo::new(from_pose.clone()).unwrap();
+    let desired = by_pose.desired_points();
+    let pixels = desired.map(|p| camera.pixel_of(p.x, p.y));
+    let depth_m = experiment.desired_camera_from_target.translation.z;
+    let mut taught = from_pose.clone();
+    taught.desired = DesiredImage::Pixels { pixels, depth_m };
+    let mut by_pixels = VisualServo::new(taught).unwrap();
+    for (a, b) in by_pixels.desired_points().iter().zip(desired) {
+        assert!((a.x - b.x).abs() < 1e-10 && (a.y - b.y).abs() < 1e-10);
+    }
+    let mut by_pose = by_pose;
+    let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, 0.01);
+    for _ in 0..300 {
+        let (t, q, corners) = (plant.time(), plant.q, plant.pixels());
+        let a = *by_pose.step(t, &corners, &q).unwrap();
+        let b = *by_pixels.step(t, &corners, &q).unwrap();
+        assert!((a.velocity - b.velocity).norm() < 1e-6 * (1.0 + a.velocity.norm()));
+        plant.apply(&a.velocity);
+    }
+    // A taught corner outside the image, a non-positive desired depth: errors at construction.
+    let mut bad = from_pose.clone();
+    bad.desired = DesiredImage::Pixels {
+        pixels: [(-5.0, 10.0), pixels[1], pixels[2], pixels[3]],
+        depth_m,
+    };
+    assert!(matches!(
+        VisualServo::new(bad),
+        Err(ServoError::OutsideImage { index: 0, .. })
+    ));
+    let mut bad = from_pose;
+    bad.desired = DesiredImage::Pixels {
+        pixels,
+        depth_m: 0.0,
+    };
+    assert!(matches!(
+        VisualServo::new(bad),
+        Err(ServoError::InvalidParameter { .. })
+    ));
+}
+
+/// The classical task (one level, six features) through the façade servos the peer scene to its goal.
+#[test]
+fn the_classical_task_converges_on_the_peer_scene() {
+    let (_, mut plant) = peer(DepthSource::Desired);
+    let robot = builtin::afma6().unwrap();
+    let mut config = ServoConfig::new(
+        robot.chain,
+        robot.camera,
+        plant.camera,
+        RectangleTarget::new(0.2, 0.1).unwrap(),
+        DesiredImage::Pose(Isometry3::translation(0.0, 0.0, 0.5)),
+    );
+    config.tasks = TaskChoice::Classical {
+        gain: 0.5,
+        fourth: FourthTask::Auto,
+    };
+    let mut servo = VisualServo::new(config).unwrap();
+    let outputs = run_loop(&mut servo, &mut plant, 5000, |output, _| {
+        assert_eq!(output.task_count, 1);
+    });
+    let last = outputs.last().unwrap();
+    assert!(last.converged, "{last:?}");
+    let (mm, deg) = plant.pose_error(&JointVector::from([0.0, 0.0, 0.0, 0.0, 0.3, 0.0]));
+    assert!(mm < 0.1 && deg < 0.01, "{mm} mm, {deg}°");
+}
+
+/// Invalid configurations are named errors at construction.
+#[test]
+fn invalid_configurations_are_named_errors() {
+    let (scenario, experiment) = paper();
+    let camera = distorted_camera(&experiment.scene);
+    let base = paper_config(&scenario, &experiment, camera);
+    let mut config = base.clone();
+    config.max_joint_velocity[3] = 0.0;
+    assert!(matches!(
+        VisualServo::new(config),
+        Err(ServoError::InvalidParameter {
+            name: "max_joint_velocity",
+            ..
+        })
+    ));
+    let mut config = base.clone();
+    config.max_joint_velocity[0] = f64::NAN;
+    assert!(VisualServo::new(config).is_err());
+    let mut config = base.clone();
+    config.depth = DepthSource::PreviousPlane;
+    assert!(matches!(
+        VisualServo::new(config),
+        Err(ServoError::UnsupportedDepthSource)
+    ));
+    let mut config = base.clone();
+    config.depth = DepthSource::Constant { depth_m: -0.5 };
+    assert!(matches!(
+        VisualServo::new(config),
+        Err(ServoError::Depth(_))
+    ));
+    let mut config = base.clone();
+    config.convergence_error = 0.0;
+    assert!(VisualServo::new(config).is_err());
+    let mut config = base.clone();
+    config.avoidance_gain = -1.0;
+    assert!(matches!(VisualServo::new(config), Err(ServoError::Law(_))));
+    let mut config = base;
+    config.tasks = TaskChoice::Sequence {
+        gains: [0.5, 0.0, 0.5, 0.5],
+        fourth: FourthTask::Auto,
+    };
+    assert!(matches!(VisualServo::new(config), Err(ServoError::Task(_))));
+}
