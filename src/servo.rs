@@ -31,7 +31,9 @@
 //!    finite; each corner is present, finite, inside the image `[0, width] × [0, height]` (px), and undistorts
 //!    ([`CalibratedCamera::normalized_of`]). A failure is a named [`ServoError`] and changes nothing: the servo's
 //!    memory (the controller's transition, the depth estimator, the last accepted time) is kept, so the next good
-//!    period continues as if the bad one had not been called. The memory assumes the robot kept the last velocity
+//!    period continues as if the bad one had not been called. (One exception: a new frame that reached the online
+//!    depth estimator before a later stage failed — a feature undefined on the image, a controller failure — stays
+//!    in the estimator, and its time counts as accepted.) The memory assumes the robot kept the last velocity
 //!    sent: **hold** it through a bad frame (as the loop above does) for a continuous velocity; a driver should also
 //!    stop the robot (send zero) when bad frames last (a watchdog), which is a velocity step.
 //! 2. **Depths** of the four points from the [`DepthSource`] ([`assign_depths`]); the online estimator is updated when a
@@ -317,7 +319,8 @@ pub struct ServoConfig<const N: usize> {
     pub tasks: TaskChoice,
     /// Where `L_i` is evaluated (default: exact, on the current image).
     pub interaction: InteractionSource,
-    /// The transition gain `μ` (s⁻¹) of [D1](crate::theory#d1); `None` (default): `10 · max λ`.
+    /// The transition gain `μ` (s⁻¹) of [D1](crate::theory#d1); `None` (default): `10 · max_i λ_i` (with an adaptive
+    /// gain, `10 · max(λ(0), λ(∞))`).
     pub transition_gain: Option<f64>,
     /// The avoidance gain `κ` (s⁻¹, ≥ 0; 0 disables the projected gradient) of [\[M18\]](crate::theory#m18). Default 10.
     pub avoidance_gain: f64,
@@ -582,7 +585,9 @@ impl<const N: usize> VisualServo<N> {
     /// [`ServoError::TimeNotIncreasing`], [`ServoError::NonFiniteJoint`], [`ServoError::MissingCorner`],
     /// [`ServoError::NonFiniteCorner`], [`ServoError::OutsideImage`], [`ServoError::Undistortion`],
     /// [`ServoError::NonPositiveDepth`], [`ServoError::Task`] (a feature undefined on this image),
-    /// [`ServoError::Controller`]. On error nothing is to be sent and the servo's memory is unchanged.
+    /// [`ServoError::Controller`]. On error nothing is to be sent and the servo's memory is unchanged — but for a new
+    /// frame already given to the online depth estimator when a later stage fails (a feature undefined on the image, a
+    /// controller failure): that update stands, and its time becomes the last accepted one.
     pub fn step(
         &mut self,
         time_s: f64,
