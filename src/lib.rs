@@ -18,6 +18,7 @@ pub mod plot;
 pub mod report;
 pub mod robot;
 pub mod scenario;
+pub mod servo;
 pub mod sim;
 pub mod stack;
 pub mod study;
@@ -39,6 +40,8 @@ pub mod guide {
     pub mod reading_results {}
     #[doc = include_str!("../docs/guide/camera_loop.md")]
     pub mod camera_loop {}
+    #[doc = include_str!("../docs/hardware_loop.md")]
+    pub mod hardware_loop {}
     #[doc = include_str!("../docs/guide/tuning.md")]
     pub mod tuning {}
 }

@@ -178,6 +178,17 @@ impl<const N: usize> TaskValue<N> {
         self.gain
     }
 
+    /// Replaces the gain `λ_i` (s⁻¹) for the next steps, e.g. an adaptive gain `λ(‖e_i‖)` recomputed each period
+    /// ([`crate::servo::AdaptiveGain`]). `name` only labels the error.
+    ///
+    /// # Errors
+    /// [`TaskError::InvalidGain`] when `gain` is not finite and strictly positive (the gain is then unchanged).
+    pub fn set_gain(&mut self, name: &str, gain: f64) -> Result<(), TaskError> {
+        validate_gain(name, gain)?;
+        self.gain = gain;
+        Ok(())
+    }
+
     /// The interaction matrix `L_i` of a sensor-based task (zero for joint-space tasks).
     pub fn interaction(&self) -> &InteractionMatrix {
         &self.interaction
