@@ -40,8 +40,6 @@ pub mod guide {
     pub mod reading_results {}
     #[doc = include_str!("../docs/guide/camera_loop.md")]
     pub mod camera_loop {}
-    #[doc = include_str!("../docs/hardware_loop.md")]
-    pub mod hardware_loop {}
     #[doc = include_str!("../docs/guide/tuning.md")]
     pub mod tuning {}
 }

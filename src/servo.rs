@@ -23,7 +23,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! (The same loop is [`crate::guide::hardware_loop`].)
+//! (The same loop is in the guide [`crate::guide::camera_loop`].)
 //!
 //! # One period ([`VisualServo::step`])
 //!
