@@ -292,9 +292,14 @@ pub fn classical_task(
     gain: f64,
     source: InteractionSource,
 ) -> Result<VisualTask, TaskError> {
-    let (centroid, angle, normalization) = paper_features(desired, desired_depth, a_priori_depth)?;
-    let set = FeatureSet::paper_full(centroid, angle, normalization);
-    VisualTask::new(CLASSICAL_TASK_NAME, Box::new(set), desired, gain, source)
+    classical_task_with(
+        desired,
+        desired_depth,
+        a_priori_depth,
+        gain,
+        source,
+        FourthTask::PaperInvariants,
+    )
 }
 
 /// The classical task with the same six features as the paper's sequence [`paper_tasks_with`] builds for `fourth`
