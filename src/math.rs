@@ -126,6 +126,20 @@ pub fn all_finite_slice(values: &[f64]) -> bool {
     values.iter().all(|v| v.is_finite())
 }
 
+/// The largest `s ∈ (0, 1]` such that `|s · v_i| ≤ max_i` for every joint: the uniform scaling of a joint velocity
+/// `v` into the per-joint limits `max` (units of each joint per second; `+∞` for no limit), which keeps its direction.
+/// `1` when `v` is within its limits. The limits must be `> 0`.
+pub fn velocity_limit_scale<const N: usize>(
+    velocity: &JointVector<N>,
+    max: &JointVector<N>,
+) -> f64 {
+    velocity
+        .iter()
+        .zip(max.iter())
+        .map(|(v, max)| if v.abs() > *max { max / v.abs() } else { 1.0 })
+        .fold(1.0, f64::min)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -773,11 +773,7 @@ impl<const N: usize> VisualServo<N> {
                 .step(&self.law, &self.values, Some(cost), q, self.iteration, time)?;
         // Uniform scaling into the velocity limits: the direction is kept.
         let unscaled = step.velocity;
-        let scale = unscaled
-            .iter()
-            .zip(self.max_velocity.iter())
-            .map(|(v, max)| if v.abs() > *max { max / v.abs() } else { 1.0 })
-            .fold(1.0, f64::min);
+        let scale = crate::math::velocity_limit_scale(&unscaled, &self.max_velocity);
         let velocity = unscaled * scale;
         self.controller.set_sent_velocity(&velocity)?;
         let output = &mut self.output;

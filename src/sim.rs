@@ -31,7 +31,7 @@ use crate::controller::{
 use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::feature::{FeatureError, Observation};
 use crate::law::{ControlLaw, LawError};
-use crate::math::{JointVector, KinematicJacobian};
+use crate::math::{velocity_limit_scale, JointVector, KinematicJacobian};
 use crate::measurement::{
     perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
 };
@@ -276,6 +276,12 @@ pub struct SimulationParameters {
     pub convergence_error: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
+    /// The robot's velocity limit of a prismatic joint (m/s, > 0; default `+∞`: none). The controller's velocity is
+    /// scaled uniformly into the limits (its direction kept) and the scaled velocity fed back to the controller, as
+    /// [`crate::servo::VisualServo`] does.
+    pub max_prismatic_velocity_m_s: f64,
+    /// The robot's velocity limit of a revolute joint (rad/s, > 0; default `+∞`: none).
+    pub max_revolute_velocity_rad_s: f64,
     /// The full method keeps the target points this far from the image border (px; default 20): when the scene has no
     /// visibility cost of its own, one with this margin joins the full method's avoidance cost, and guards its
     /// removals (D6 (d)): a removal must not bring the predicted points deeper into that band than keeping the task.
@@ -289,6 +295,8 @@ impl Default for SimulationParameters {
             max_iterations: 10_000,
             convergence_error: 1e-4,
             image_margin: 0.0,
+            max_prismatic_velocity_m_s: f64::INFINITY,
+            max_revolute_velocity_rad_s: f64::INFINITY,
             visibility_margin_px: 20.0,
         }
     }
@@ -315,6 +323,20 @@ impl SimulationParameters {
         }
         if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
             return invalid("image_margin", self.image_margin, "finite and ≥ 0");
+        }
+        for (name, value) in [
+            (
+                "max_prismatic_velocity_m_s",
+                self.max_prismatic_velocity_m_s,
+            ),
+            (
+                "max_revolute_velocity_rad_s",
+                self.max_revolute_velocity_rad_s,
+            ),
+        ] {
+            if value.is_nan() || value <= 0.0 {
+                return invalid(name, value, "> 0 (or +∞ for no limit)");
+            }
         }
         let guard = self.visibility_margin_px;
         if !(guard.is_finite() && guard >= 0.0) {
@@ -877,6 +899,13 @@ pub fn simulate<const N: usize>(
         (Some(visibility), _) | (None, Some(visibility)) => Some(visibility as &dyn Cost<N>),
         (None, None) => None,
     };
+    let max_velocity = JointVector::<N>::from_fn(|i, _| {
+        if scene.chain.joints()[i].kind().is_rotational() {
+            parameters.max_revolute_velocity_rad_s
+        } else {
+            parameters.max_prismatic_velocity_m_s
+        }
+    });
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
@@ -984,7 +1013,10 @@ pub fn simulate<const N: usize>(
                     None => return Err(error.into()),
                 },
             };
-        record.velocity = step.velocity;
+        // The robot's velocity limits: uniform scaling, and the controller told what was sent.
+        let velocity = step.velocity * velocity_limit_scale(&step.velocity, &max_velocity);
+        controller.set_sent_velocity(&velocity)?;
+        record.velocity = velocity;
         record.sent = true;
         // The stack that produced the velocity sent (a change made at this iteration included).
         record.stacked.clear();
@@ -994,9 +1026,9 @@ pub fn simulate<const N: usize>(
         if let Some(sensing) = &mut sensing {
             let believed_jacobian =
                 believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)?;
-            sensing.sent(&believed_jacobian, &step.velocity, parameters.period);
+            sensing.sent(&believed_jacobian, &velocity, parameters.period);
         }
-        q += step.velocity * parameters.period;
+        q += velocity * parameters.period;
         let hit = scene.limits.violated_joint(&q);
         closest = closest_obstacle(scene, &q)?;
         let contact = closest.clone().filter(|(_, _, d)| *d <= 0.0);

@@ -219,3 +219,30 @@ fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
         }
     }
 }
+
+/// The robot's velocity saturation: every velocity sent stays within the limits — the limits active over many
+/// periods — and the velocity sent does not jump at any change of the full method. (That the controller blends from
+/// the velocity the robot received is tested on the façade, `tests/servo.rs`, where it is observable.)
+#[test]
+fn saturated_velocities_stay_within_the_limits_and_continuous() {
+    let (base, _) = scenario();
+    let mut scenario = base.clone();
+    scenario.simulation.max_prismatic_velocity_m_s = 0.02;
+    scenario.simulation.max_revolute_velocity_rad_s = 0.05;
+    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let mut saturated = 0;
+    for record in run.records.iter().filter(|r| r.sent) {
+        for (i, v) in record.velocity.iter().enumerate() {
+            let max = if i < 3 { 0.02 } else { 0.05 };
+            assert!(v.abs() <= max * (1.0 + 1e-12), "joint {i}: {v}");
+            saturated += usize::from(v.abs() >= max * (1.0 - 1e-9));
+        }
+    }
+    assert!(
+        saturated > 100,
+        "the limits were hardly active ({saturated} periods)"
+    );
+    for change in run.event_continuity() {
+        assert!(change.jump <= 1e-9, "{change:?}");
+    }
+}
