@@ -156,7 +156,7 @@ pub struct ControllerParameters {
     /// convergence-domain study, a longer horizon (1 or 2 transitions) raises false alarms right after a push, when
     /// the law's transient is extrapolated linearly: on the square-marker scenario the full method then fails where
     /// the stack with gradient converges (mild starts: 60 of 60 converge with 0, none with 2), while on the paper
-    /// scenario it helps the uniform starts (42 of 200 with 0, 79 with 2). The default favours never doing worse
+    /// scenario it helps the uniform starts (42 of 200 with 0, 79 with 2; both without velocity saturation). The default favours never doing worse
     /// than the stack with gradient; this parameter works in a narrow window and is reported as such.
     pub look_ahead_transitions: f64,
     /// `h_max`: a task is removed when `h(q̂) > h_max` (D6), in the cost's unit. `None`: the cost's
