@@ -870,7 +870,14 @@ mod tests {
 
     #[test]
     fn invalid_parameters_are_named() {
-        let cases: [(&str, MeasurementParameters); 8] = [
+        let cases: [(&str, MeasurementParameters); 9] = [
+            (
+                "filter_time_constant_s",
+                MeasurementParameters {
+                    filter_time_constant_s: -0.1,
+                    ..Default::default()
+                },
+            ),
             (
                 "pixel_noise_uniform_px",
                 MeasurementParameters {

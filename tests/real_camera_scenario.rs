@@ -4,7 +4,7 @@
 
 use servostack::robot::KinematicsWorkspace;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
-use servostack::sim::Outcome;
+use servostack::sim::{Outcome, SimError};
 use std::path::Path;
 
 fn scenario() -> Scenario {
@@ -74,4 +74,26 @@ fn bad_measurement_and_depth_fields_are_named() {
     assert_eq!(field_of(&bad_depth), "depth");
     let unknown = text.replace("latency_frames = 1", "latency_frame = 1");
     assert!(Scenario::from_toml_str(&unknown, None).is_err());
+}
+
+/// The simulation's velocity saturation must be positive (or infinite): a zero or NaN limit is named.
+#[test]
+fn invalid_velocity_limits_are_named() {
+    for (field, value) in [
+        ("max_prismatic_velocity_m_s", 0.0),
+        ("max_revolute_velocity_rad_s", f64::NAN),
+        ("max_revolute_velocity_rad_s", -1.0),
+    ] {
+        let mut scenario = scenario();
+        match field {
+            "max_prismatic_velocity_m_s" => scenario.simulation.max_prismatic_velocity_m_s = value,
+            _ => scenario.simulation.max_revolute_velocity_rad_s = value,
+        }
+        match scenario.run::<6>(RunKind::StackController) {
+            Err(ScenarioError::Simulation(SimError::InvalidParameter { name, .. })) => {
+                assert_eq!(name, field)
+            }
+            other => panic!("{field} = {value}: {other:?}"),
+        }
+    }
 }
