@@ -865,7 +865,10 @@ pub fn simulate<const N: usize>(
         .collect::<Result<_, _>>()?;
     // With a real camera, the noise-free task values (the run's errors and its convergence) apart from the measured
     // ones the controller gets.
-    let mut true_values = values.clone();
+    let mut true_values = match drive.sensing {
+        Some(_) => values.clone(),
+        None => Vec::new(),
+    };
     let mut sensing = drive
         .sensing
         .map(|s| SensingState::new(s, scene, parameters.period))

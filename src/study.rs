@@ -511,23 +511,21 @@ impl<'a> Study<'a> {
         index: usize,
         draw: usize,
     ) -> Result<DrawResult, StudyError> {
-        {
-            let (mut scenario, experiment, rejected) = self.valid_situation::<N>(index, draw)?;
-            // Each draw's camera noise has its own seed, drawn from the draw's stream.
-            scenario.measurement.seed = self.stream(index, draw).random();
-            let mut methods = Vec::with_capacity(self.methods.len());
-            for &method in &self.methods {
-                let run = scenario.run_experiment(&experiment, method)?;
-                methods.push(method_result(method, &run, &experiment)?);
-            }
-            Ok(DrawResult {
-                draw,
-                rejected,
-                start: scenario.start.joints.clone(),
-                goal: scenario.desired.joints.clone(),
-                methods,
-            })
+        let (mut scenario, experiment, rejected) = self.valid_situation::<N>(index, draw)?;
+        // Each draw's camera noise has its own seed, drawn from the draw's stream.
+        scenario.measurement.seed = self.stream(index, draw).random();
+        let mut methods = Vec::with_capacity(self.methods.len());
+        for &method in &self.methods {
+            let run = scenario.run_experiment(&experiment, method)?;
+            methods.push(method_result(method, &run, &experiment)?);
         }
+        Ok(DrawResult {
+            draw,
+            rejected,
+            start: scenario.start.joints.clone(),
+            goal: scenario.desired.joints.clone(),
+            methods,
+        })
     }
 
     fn summarize(&self, family: &Family, draws: Vec<DrawResult>) -> FamilyResult {
