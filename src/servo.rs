@@ -63,7 +63,7 @@ use crate::feature::{InteractionSource, Observation};
 use crate::law::{ControlLaw, LawError};
 use crate::math::{first_non_finite, JointVector};
 use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
-use crate::target::RectangleTarget;
+use crate::target::{RectangleTarget, TargetError};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{
     classical_task_with, paper_tasks_with, FourthTask, VisualContext, VisualTask,
@@ -92,9 +92,9 @@ pub enum ServoError {
         /// What is expected.
         expected: &'static str,
     },
-    /// [`DepthSource::PreviousPlane`] needs a pose estimate of the target, which the façade does not make (at
-    /// construction).
-    #[error("depth source `previous_plane` is not supported by the servo façade (use desired, constant or estimated)")]
+    /// [`DepthSource::PreviousPlane`] is the simulation's perfect pose one period late, which a real loop does not have
+    /// (at construction); [`DepthSource::TargetPose`] estimates the pose from the measured corners instead.
+    #[error("depth source `previous_plane` is not supported by the servo façade (use desired, constant, target_pose or estimated)")]
     UnsupportedDepthSource,
     /// The detector did not deliver corner `index` (`None`).
     #[error("corner {index} is missing")]
@@ -182,6 +182,10 @@ pub enum ServoError {
     /// The depth source's parameters are invalid.
     #[error(transparent)]
     Depth(#[from] DepthError),
+    /// [`DepthSource::TargetPose`]: the measured corners give no target pose (three collinear corners, or a plane at or
+    /// behind the camera). Nothing of the period is committed.
+    #[error("no target pose from the measured corners: {0}")]
+    TargetPose(#[from] TargetError),
 }
 
 /// ViSP's adaptive gain (`vpAdaptiveGain::initStandard`): `λ(x) = a e^{−b x} + c` with `a = λ(0) − λ(∞)`,
@@ -435,6 +439,8 @@ pub struct VisualServo<const N: usize> {
     kinematics: KinematicsWorkspace<N>,
     depth: DepthSource,
     estimator: Option<DepthEstimator>,
+    /// The target model, for [`DepthSource::TargetPose`].
+    target: RectangleTarget,
     desired_points: [ImagePoint; 4],
     max_velocity: JointVector<N>,
     adaptive: Option<AdaptiveGain>,
@@ -545,6 +551,7 @@ impl<const N: usize> VisualServo<N> {
             kinematics: KinematicsWorkspace::new(),
             depth: config.depth,
             estimator,
+            target: config.target,
             desired_points,
             max_velocity: config.max_joint_velocity,
             adaptive: config.adaptive_gain,
@@ -701,14 +708,20 @@ impl<const N: usize> VisualServo<N> {
                 .map_err(depth_error)?;
             depth_updated = true;
         }
-        let depths = match (&self.estimator, self.depth) {
-            (Some(estimator), _) => Depths::Estimated(estimator.depths()),
-            (None, DepthSource::Constant { depth_m }) => Depths::Constant(depth_m),
-            (None, _) => Depths::Desired(&self.desired_points),
+        let plane = match self.depth {
+            DepthSource::TargetPose => Some(self.target.plane_from_image(measured)),
+            _ => None,
+        };
+        let depths = match (&self.estimator, self.depth, &plane) {
+            (Some(estimator), _, _) => Ok(Depths::Estimated(estimator.depths())),
+            (None, _, Some(Ok(plane))) => Ok(Depths::Plane(plane)),
+            (None, _, Some(Err(e))) => Err(ServoError::TargetPose(e.clone())),
+            (None, DepthSource::Constant { depth_m }, None) => Ok(Depths::Constant(depth_m)),
+            (None, _, None) => Ok(Depths::Desired(&self.desired_points)),
         };
         let mut points = [ImagePoint::default(); 4];
-        let result = assign_depths(depths, measured, &mut points)
-            .map_err(depth_error)
+        let result = depths
+            .and_then(|depths| assign_depths(depths, measured, &mut points).map_err(depth_error))
             .and_then(|()| self.control(time, &points, q));
         if result.is_err() && !depth_updated {
             // Nothing changed (the controller restores its own memory on error).

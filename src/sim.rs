@@ -718,7 +718,11 @@ struct SensingState<'a> {
     believed_twist: Vector6<f64>,
     twist_sum: Vector6<f64>,
     twist_time: f64,
-    previous_plane: Option<TargetPlane>,
+    /// The plane of the pose estimate the depth source uses: the perfect one of the previous period
+    /// ([`DepthSource::PreviousPlane`]) or the one estimated from the last measured corners and the target model
+    /// ([`DepthSource::TargetPose`]).
+    plane: Option<TargetPlane>,
+    target: RectangleTarget,
     measured: [Point2<f64>; 4],
     points: [ImagePoint; 4],
 }
@@ -741,7 +745,8 @@ impl<'a> SensingState<'a> {
             believed_twist: Vector6::zeros(),
             twist_sum: Vector6::zeros(),
             twist_time: 0.0,
-            previous_plane: None,
+            plane: None,
+            target: scene.target,
             measured: [Point2::origin(); 4],
             points: [ImagePoint::default(); 4],
         })
@@ -753,7 +758,7 @@ impl<'a> SensingState<'a> {
         let depths = depths_of(
             self.sensing,
             self.estimator.as_ref(),
-            self.previous_plane.as_ref(),
+            self.plane.as_ref(),
             view,
         );
         let measurement = self
@@ -774,15 +779,25 @@ impl<'a> SensingState<'a> {
             }
             (self.twist_sum, self.twist_time) = (Vector6::zeros(), 0.0);
         }
+        let from_corners = self.sensing.depth == Some(DepthSource::TargetPose);
+        if from_corners {
+            let plane = self
+                .target
+                .plane_from_image(&self.measured)
+                .map_err(|e| e.to_string())?;
+            self.plane = Some(plane);
+        }
         let depths = depths_of(
             self.sensing,
             self.estimator.as_ref(),
-            self.previous_plane.as_ref(),
+            self.plane.as_ref(),
             view,
         );
         assign_depths(depths, &self.measured, &mut self.points).map_err(|e| e.to_string())?;
-        // A perfect pose estimate, one period late.
-        self.previous_plane = Some(view.plane);
+        if !from_corners {
+            // A perfect pose estimate, one period late.
+            self.plane = Some(view.plane);
+        }
         Ok(())
     }
 
@@ -800,20 +815,21 @@ impl<'a> SensingState<'a> {
     }
 }
 
-/// The depths of `sensing`'s source: the estimator's, a constant, the desired image's, the previous plane (a perfect
-/// pose estimate one period late; the current one at the first period), or the true depths of `view` (no source).
+/// The depths of `sensing`'s source: the estimator's, a constant, the desired image's, the plane of a pose estimate
+/// (`plane`: a perfect one, one period late, or the one from the measured corners; the true plane before the first),
+/// or the true depths of `view` (no source).
 fn depths_of<'b, const N: usize>(
     sensing: &'b Sensing<'_>,
     estimator: Option<&'b DepthEstimator>,
-    previous_plane: Option<&'b TargetPlane>,
+    plane: Option<&'b TargetPlane>,
     view: &'b View<N>,
 ) -> Depths<'b> {
     match (&sensing.depth, estimator) {
         (_, Some(estimator)) => Depths::Estimated(estimator.depths()),
         (Some(DepthSource::Constant { depth_m }), None) => Depths::Constant(*depth_m),
         (Some(DepthSource::Desired), None) => Depths::Desired(&sensing.desired_points),
-        (Some(DepthSource::PreviousPlane), None) => {
-            Depths::Plane(previous_plane.unwrap_or(&view.plane))
+        (Some(DepthSource::PreviousPlane | DepthSource::TargetPose), None) => {
+            Depths::Plane(plane.unwrap_or(&view.plane))
         }
         (Some(DepthSource::Estimated { .. }) | None, None) => Depths::Desired(&view.points),
     }

@@ -195,6 +195,50 @@ fn converges_on_the_paper_scenario_with_a_distorted_camera() {
     );
 }
 
+/// No depth known in advance: the façade estimates the target's pose from the four measured corners at each period
+/// ([`DepthSource::TargetPose`]) and still reaches the goal pose within the limits.
+#[test]
+fn converges_on_the_paper_scenario_with_depths_from_the_measured_corners() {
+    let (scenario, experiment) = paper();
+    let camera = distorted_camera(&experiment.scene);
+    let mut config = paper_config(&scenario, &experiment, camera);
+    config.depth = DepthSource::TargetPose;
+    let mut servo = VisualServo::new(config).unwrap();
+    let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, 0.01);
+    let outputs = run_loop(&mut servo, &mut plant, 10_000, |_, _| {});
+    assert!(outputs.last().unwrap().converged);
+    let (mm, deg) = plant.pose_error(&experiment.desired_joints);
+    assert!(mm < 1.0 && deg < 0.05, "pose error {mm} mm, {deg}°");
+}
+
+/// Corners that give no target pose (three of them collinear) are a named error that leaves no trace.
+#[test]
+fn corners_without_a_target_pose_are_a_named_error_and_leave_no_trace() {
+    let (scenario, experiment) = paper();
+    let camera = distorted_camera(&experiment.scene);
+    let config = || {
+        let mut config = paper_config(&scenario, &experiment, camera);
+        config.depth = DepthSource::TargetPose;
+        config
+    };
+    bad_calls_leave_no_trace(config, 200, true, |servo, plant, k, _| {
+        if k % 50 != 0 {
+            return None;
+        }
+        let mut corners = plant.normalized_corners();
+        // Corner 2 halfway between corners 0 and 1 (still in the image).
+        let (Some(a), Some(b)) = (corners[0], corners[1]) else {
+            unreachable!("the plant measures every corner")
+        };
+        corners[2] = Some((0.5 * (a.0 + b.0), 0.5 * (a.1 + b.1)));
+        let error = servo
+            .step_normalized(plant.time(), &corners, &plant.q)
+            .unwrap_err();
+        assert!(matches!(error, ServoError::TargetPose(_)), "{error}");
+        Some(error)
+    });
+}
+
 fn limited_velocity() -> JointVector<6> {
     // m/s for the three prismatic joints, rad/s for the three revolute ones.
     JointVector::from([0.02, 0.02, 0.02, 0.05, 0.05, 0.05])
@@ -597,6 +641,7 @@ fn peer(depth: DepthSource) -> (VisualServo<6>, Plant) {
 fn steady_state_periods_allocate_nothing() {
     for (depth, normalized) in [
         (DepthSource::Desired, false),
+        (DepthSource::TargetPose, false),
         (
             DepthSource::Estimated {
                 initial_depth_m: 0.4,

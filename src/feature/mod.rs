@@ -86,7 +86,7 @@ mod point;
 mod set;
 mod sides;
 #[cfg(test)]
-mod testutil;
+pub(crate) mod testutil;
 
 pub use angle::{DiagonalAngle, MomentOrientation};
 pub use area::{AreaNormalization, AreaNormalized, CentredMoment};
