@@ -29,6 +29,7 @@
 //! For a limited Jacobian `J̃_i = J_i P` the stack measures `σ_max` on the task's own scale, `max(σ_max(J̃_i), ‖J_i‖_F)`
 //! ([`ColumnSvd::decompose_with_scale`]).
 
+mod certified;
 mod jacobi;
 mod projector;
 mod pseudo_inverse;
@@ -36,6 +37,7 @@ mod svd;
 #[cfg(test)]
 mod tests;
 
+pub use certified::{solve_full_column_rank, FAST_PATH_CONDITION_BOUND};
 pub use projector::{null_space_projector, symmetrize};
 pub use pseudo_inverse::pseudo_inverse;
 pub use svd::ColumnSvd;
