@@ -14,7 +14,9 @@
 //! free by the whole stack, where avoidance acts ([`crate::law`], [\[M18\]](crate::theory#m18)). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
 //! a lower level never changes `J_k q̇` for a higher level `k` (up to the rank truncation).
 //!
-//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]); the velocity term may use
+//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]), or, for a first level of
+//! at least `N` rows certified to have full column rank and to be well conditioned, by the normal equations
+//! ([`crate::linalg::solve_full_column_rank`], [D15](crate::theory#d15)); the velocity term may use
 //! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` ([D2](crate::theory#d2)). The projector is
 //! re-symmetrised after each update ([theory §2.1.3](crate::theory#s2-1-3)). The rank threshold of level `i` is relative to the task's own scale
 //! `‖J_i‖_F`, not to `σ_max(J̃_i)`: a level whose `J̃_i` is tiny compared with `J_i` conflicts with the higher levels
