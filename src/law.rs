@@ -12,6 +12,10 @@
 //! step, that velocity becomes `q̇(τ⁻)` and the new law is blended from it, so `q̇(τ⁺) = q̇(τ⁻)` exactly. A fresh
 //! workspace starts at rest: its first step is a switch from `q̇ = 0` (ViSP's smooth start).
 //!
+//! The avoidance gradient goes through `P^A_n` by default; for a one-level stack a law may use ViSP's large projection
+//! operator instead ([`AvoidanceProjection::NormPreserving`], [D16](crate::theory#d16)), which acts even when the task
+//! has full rank while leaving the decay of `‖e‖` to the task.
+//!
 //! ```
 //! use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 //! use servostack::task::{TaskValue, TaskJacobian};
