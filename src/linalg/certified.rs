@@ -108,8 +108,9 @@ where
     if !(lower_sq >= conditioned && lower_sq > 0.0) {
         return None;
     }
+    // Finite and positive here, as is the threshold.
     let lower = lower_sq.sqrt();
-    if !(lower > 2.0 * policy.threshold(frobenius_sq.sqrt().max(reference_scale))) {
+    if lower <= 2.0 * policy.threshold(frobenius_sq.sqrt().max(reference_scale)) {
         return None;
     }
     // x₀ = L⁻ᵀ (L⁻¹ b), then x = x₀ + L⁻ᵀ L⁻¹ Aᵀ (r − A x₀), the residual formed from A.
