@@ -2,7 +2,7 @@
 //!
 //! * `step/*`: one full iteration of the servo loop (kinematics, projection, features, tasks, law or controller, Euler)
 //!   for the paper's four stacked tasks under the stack controller (joint-limit avoidance, continuity, prediction and
-//!   criteria at every step), the classical six-row task under the controller, and the peer variants A, B, C; in
+//!   criteria at every step), the classical six-row task under the controller, and the peer variants A, B, C, CL; in
 //!   episodes of at most 1000 steps from `q0` (the reset and the pushes of the stack untimed), as the peer protocol.
 //! * `parts/*`: kinematics, observation of the target (kinematics + camera pose + projection + plane + `cVe eJe`),
 //!   moments, the four paper tasks evaluated (features, `L`, `J = L cVe eJe`), the stack solve of 1–4 paper levels,
@@ -40,6 +40,7 @@ fn steps(c: &mut Criterion) {
         ("peer_A", ServoLoop::peer(Variant::A)),
         ("peer_B", ServoLoop::peer(Variant::B)),
         ("peer_C", ServoLoop::peer(Variant::C)),
+        ("peer_CL", ServoLoop::peer(Variant::CL)),
     ];
     for (name, mut servo) in loops {
         // Episodes as in the peer protocol: from q0 (once every task is stacked), at most EPISODE timed steps, the

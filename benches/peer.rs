@@ -1,6 +1,7 @@
 //! servostack on the peer scene (docs/peer_scene.md, `servostack::theory::peer_scene`), with ViSP's timing protocol, for a side-by-side comparison.
 //!
-//! Per variant (A points, B moments, C points + joint limits + continuity): one untimed warm-up episode, then
+//! Per variant (A points, B moments, C points + joint limits + continuity, CL: C with ViSP's large projection
+//! operator, the like-for-like of ViSP's C): one untimed warm-up episode, then
 //! [`EPISODES`] episodes of [`ITERATIONS`] iterations, each restarting at `q0`, `t = 0` (the reset is not timed);
 //! batches of [`BATCH`] iterations are timed with `std::time::Instant`. One JSON line per variant:
 //! `{"variant", "ns_per_iter_median", "ns_per_iter_min", "iters", "final_error"}`, where `final_error` is `‖e‖` after

@@ -1017,9 +1017,8 @@ impl<const N: usize> StackController<N> {
             &self.trial_order,
         )
         .map_err(LawError::from)?;
-        let mut trial = *solution.velocity();
-        trial.gemv(-law.avoidance_gain(), solution.projector(), gradient, 1.0);
-        Ok(trial)
+        let avoidance = law.avoidance_term(solution, tasks, &self.trial_order, gradient)?;
+        Ok(solution.velocity() + avoidance)
     }
 
     /// D5: the stack velocity is small and the last transition has died out.

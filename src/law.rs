@@ -12,6 +12,10 @@
 //! step, that velocity becomes `q̇(τ⁻)` and the new law is blended from it, so `q̇(τ⁺) = q̇(τ⁻)` exactly. A fresh
 //! workspace starts at rest: its first step is a switch from `q̇ = 0` (ViSP's smooth start).
 //!
+//! The avoidance gradient goes through `P^A_n` by default; for a one-level stack a law may use ViSP's large projection
+//! operator instead ([`AvoidanceProjection::NormPreserving`], [D16](crate::theory#d16)), which acts even when the task
+//! has full rank while leaving the decay of `‖e‖` to the task.
+//!
 //! ```
 //! use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 //! use servostack::task::{TaskValue, TaskJacobian};
@@ -80,6 +84,116 @@ pub enum LawError {
     /// The law produced a non-finite velocity (for example, a cost gradient overflowed).
     #[error("the control law produced a non-finite velocity")]
     NonFiniteVelocity,
+    /// The sigmoid bounds of [`AvoidanceProjection::NormPreserving`] must be finite with `0 ≤ lower < upper`.
+    #[error("norm-preserving projection bounds {lower} .. {upper} must be finite with 0 ≤ lower < upper")]
+    InvalidProjectionBounds {
+        /// The lower bound given.
+        lower: f64,
+        /// The upper bound given.
+        upper: f64,
+    },
+    /// [`AvoidanceProjection::NormPreserving`] is defined for a stack of one level only.
+    #[error("the norm-preserving projection needs a stack of one level, not {levels}")]
+    NormPreservingNeedsOneLevel {
+        /// The number of levels of the stack given.
+        levels: usize,
+    },
+}
+
+/// The projector the avoidance gradient goes through ([D16](crate::theory#d16)).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AvoidanceProjection {
+    /// `P^A_n`, the projector onto the kernel of the whole stack ([\[M18\]](crate::theory#m18)): the avoidance never
+    /// disturbs a task. The paper's law, and the default.
+    #[default]
+    Kernel,
+    /// ViSP's large projection operator (`vpServo::secondaryTaskJointLimitAvoidance`; Marey & Chaumette, ICRA 2010) for a
+    /// stack of one level `(e, J)`, with `g = Jᵀ e`:
+    ///
+    /// ```text
+    /// P = s(‖e‖) (I − g gᵀ / ‖g‖²) + (1 − s(‖e‖)) P^A_1
+    /// s(x) = 0 for x < lower,  1 for x > upper,  1 / (1 + exp(−12 (x − lower)/(upper − lower) + 6)) between
+    /// ```
+    ///
+    /// `eᵀ J P ∇h = s eᵀ J (I − g gᵀ/‖g‖²) ∇h = 0`: the avoidance leaves `d‖e‖²/dt` unchanged (the norm of the error still
+    /// decays as the task alone makes it), but it may change the error's direction. Far from the goal it acts even
+    /// when the task has full rank (`P^A_1 = 0`); near the goal (`‖e‖ < lower`) it is the kernel projector. ViSP's
+    /// bounds are `lower = 0.1`, `upper = 0.7`, in the task's units.
+    NormPreserving {
+        /// `‖e‖` below which the kernel projector alone acts.
+        lower: f64,
+        /// `‖e‖` above which the norm-preserving projector alone acts.
+        upper: f64,
+    },
+}
+
+impl AvoidanceProjection {
+    /// ViSP's bounds, `NormPreserving { lower: 0.1, upper: 0.7 }`.
+    pub const VISP: Self = Self::NormPreserving {
+        lower: 0.1,
+        upper: 0.7,
+    };
+
+    /// Checks the bounds.
+    ///
+    /// # Errors
+    /// [`LawError::InvalidProjectionBounds`].
+    pub fn validate(&self) -> Result<(), LawError> {
+        match *self {
+            Self::Kernel => Ok(()),
+            Self::NormPreserving { lower, upper }
+                if lower.is_finite() && upper.is_finite() && 0.0 <= lower && lower < upper =>
+            {
+                Ok(())
+            }
+            Self::NormPreserving { lower, upper } => {
+                Err(LawError::InvalidProjectionBounds { lower, upper })
+            }
+        }
+    }
+
+    /// `P ∇h` for the stack `order` of `tasks` whose solution is `solution` (`P = P^A_n` for [`Self::Kernel`]).
+    fn project<const N: usize>(
+        &self,
+        solution: &StackSolution<N>,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        gradient: &JointVector<N>,
+    ) -> Result<JointVector<N>, LawError> {
+        let kernel = solution.projector() * gradient;
+        let Self::NormPreserving { lower, upper } = *self else {
+            return Ok(kernel);
+        };
+        let task = match order {
+            [index] => tasks.get(*index).ok_or(StackError::UnknownTask {
+                level: 0,
+                task: *index,
+                available: tasks.len(),
+            })?,
+            _ => {
+                return Err(LawError::NormPreservingNeedsOneLevel {
+                    levels: order.len(),
+                })
+            }
+        };
+        let norm = task.error().norm();
+        let weight = if norm < lower {
+            0.0
+        } else if norm > upper {
+            1.0
+        } else {
+            1.0 / (1.0 + (-12.0 * (norm - lower) / (upper - lower) + 6.0).exp())
+        };
+        let g: JointVector<N> = task.jacobian().tr_mul(task.error());
+        let g_sq = g.norm_squared();
+        if weight == 0.0 || g_sq == 0.0 {
+            return Ok(kernel);
+        }
+        let mut projected = gradient - g * (g.dot(gradient) / g_sq);
+        projected *= weight;
+        projected.axpy(1.0 - weight, &kernel, 1.0);
+        Ok(projected)
+    }
 }
 
 /// The model of the control law: how the stack is inverted and the gains `μ` and `κ`. Immutable after construction.
@@ -88,6 +202,7 @@ pub struct ControlLaw {
     stack: StackParameters,
     transition_gain: f64,
     avoidance_gain: f64,
+    projection: AvoidanceProjection,
 }
 
 impl ControlLaw {
@@ -142,7 +257,41 @@ impl ControlLaw {
             stack,
             transition_gain,
             avoidance_gain,
+            projection: AvoidanceProjection::Kernel,
         })
+    }
+
+    /// The same law with the avoidance gradient projected by `projection` ([D16](crate::theory#d16)).
+    ///
+    /// # Errors
+    /// [`LawError::InvalidProjectionBounds`].
+    pub fn with_avoidance_projection(
+        mut self,
+        projection: AvoidanceProjection,
+    ) -> Result<Self, LawError> {
+        projection.validate()?;
+        self.projection = projection;
+        Ok(self)
+    }
+
+    /// The projector of the avoidance gradient.
+    pub fn avoidance_projection(&self) -> AvoidanceProjection {
+        self.projection
+    }
+
+    /// The avoidance term `−κ P ∇h` for the stack `order` of `tasks`, solved into `solution` (`P = P^A_n` by default,
+    /// [D16](crate::theory#d16)).
+    ///
+    /// # Errors
+    /// [`LawError::NormPreservingNeedsOneLevel`] for a norm-preserving projection on a stack of another size.
+    pub fn avoidance_term<const N: usize>(
+        &self,
+        solution: &StackSolution<N>,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        gradient: &JointVector<N>,
+    ) -> Result<JointVector<N>, LawError> {
+        Ok(self.projection.project(solution, tasks, order, gradient)? * -self.avoidance_gain)
     }
 
     /// The stack parameters.
@@ -301,10 +450,10 @@ pub fn control_step<'w, const N: usize>(
         Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
         None => 0.0,
     };
-    // u = q̇_n − κ P^A_n ∇h (∇h = 0 without a cost)
+    // u = q̇_n − κ P ∇h (∇h = 0 without a cost; P = P^A_n by default, D16)
     let mut law_velocity = *solution.velocity();
     if cost.is_some() {
-        law_velocity.gemv(-law.avoidance_gain, solution.projector(), &gradient, 1.0);
+        law_velocity += law.avoidance_term(solution, tasks, order, &gradient)?;
     }
     let mut transition = workspace.transition;
     if change == StackChange::Changed {
@@ -323,4 +472,113 @@ pub fn control_step<'w, const N: usize>(
     output.cost = cost_value;
     output.decay = decay;
     Ok(output)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::avoidance::JointLimits;
+    use crate::task::TaskJacobian;
+    use nalgebra::{DVector, Vector3};
+
+    /// A full-rank 3-row task on 3 joints with a large error, and joint 1 deep in its activation band.
+    fn full_rank_case() -> ([TaskValue<3>; 1], JointLimits<3>, Vector3<f64>) {
+        let jacobian =
+            TaskJacobian::<3>::from_row_slice(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 1.0]);
+        let task =
+            TaskValue::from_parts("t", DVector::from_vec(vec![0.9, -0.4, 0.5]), jacobian, 0.5)
+                .unwrap();
+        let limits = JointLimits::new(Vector3::repeat(-1.0), Vector3::repeat(1.0), 0.1).unwrap();
+        ([task], limits, Vector3::new(0.0, 0.95, 0.0))
+    }
+
+    fn law_of(
+        projection: AvoidanceProjection,
+        case: &([TaskValue<3>; 1], JointLimits<3>, Vector3<f64>),
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let (tasks, limits, q) = case;
+        let law = ControlLaw::new(10.0, 0.5)
+            .unwrap()
+            .with_avoidance_projection(projection)
+            .unwrap();
+        let mut workspace = ControlWorkspace::new(tasks);
+        let cost: &dyn Cost<3> = limits;
+        let law_velocity = *control_step(
+            &law,
+            &mut workspace,
+            tasks,
+            &[0],
+            Some(cost),
+            q,
+            1.0,
+            StackChange::Unchanged,
+        )
+        .unwrap()
+        .law();
+        (
+            law_velocity,
+            law_velocity - workspace.stack_solution().velocity(),
+        )
+    }
+
+    /// D16: with a full-rank task the kernel projector is zero, the norm-preserving one is not, and its avoidance term
+    /// is orthogonal to `Jᵀe`: it leaves `d‖e‖²/dt = 2 eᵀ J q̇` to the task.
+    #[test]
+    fn norm_preserving_projection_acts_without_changing_the_error_norm_rate() {
+        let case = full_rank_case();
+        let (_, kernel) = law_of(AvoidanceProjection::Kernel, &case);
+        assert_eq!(kernel.norm(), 0.0);
+        let (_, large) = law_of(AvoidanceProjection::VISP, &case);
+        assert!(large.norm() > 1e-3, "avoidance {large}");
+        let task = &case.0[0];
+        let rate = task.error().dot(&(task.jacobian() * large));
+        assert!(rate.abs() < 1e-15, "eᵀ J (avoidance) = {rate}");
+        // Below the lower bound of the sigmoid, the kernel projector alone: zero again.
+        let far = AvoidanceProjection::NormPreserving {
+            lower: 2.0,
+            upper: 3.0,
+        };
+        assert_eq!(law_of(far, &case).1.norm(), 0.0);
+    }
+
+    #[test]
+    fn norm_preserving_projection_is_checked() {
+        for (lower, upper) in [
+            (0.5, 0.5),
+            (-0.1, 0.7),
+            (0.1, f64::INFINITY),
+            (f64::NAN, 1.0),
+        ] {
+            let projection = AvoidanceProjection::NormPreserving { lower, upper };
+            let law = ControlLaw::new(10.0, 0.5)
+                .unwrap()
+                .with_avoidance_projection(projection);
+            assert!(
+                matches!(law, Err(LawError::InvalidProjectionBounds { .. })),
+                "{lower} .. {upper}"
+            );
+        }
+        let (tasks, limits, q) = full_rank_case();
+        let two = [tasks[0].clone(), tasks[0].clone()];
+        let law = ControlLaw::new(10.0, 0.5)
+            .unwrap()
+            .with_avoidance_projection(AvoidanceProjection::VISP)
+            .unwrap();
+        let mut workspace = ControlWorkspace::new(&two);
+        let cost: &dyn Cost<3> = &limits;
+        let result = control_step(
+            &law,
+            &mut workspace,
+            &two,
+            &[0, 1],
+            Some(cost),
+            &q,
+            0.0,
+            StackChange::Changed,
+        );
+        assert_eq!(
+            result.unwrap_err(),
+            LawError::NormPreservingNeedsOneLevel { levels: 2 }
+        );
+    }
 }

@@ -14,7 +14,9 @@
 //! free by the whole stack, where avoidance acts ([`crate::law`], [\[M18\]](crate::theory#m18)). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
 //! a lower level never changes `J_k q̇` for a higher level `k` (up to the rank truncation).
 //!
-//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]); the velocity term may use
+//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]), or, for a first level of
+//! at least `N` rows certified to have full column rank and to be well conditioned, by the normal equations
+//! ([`crate::linalg::solve_full_column_rank`], [D15](crate::theory#d15)); the velocity term may use
 //! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` ([D2](crate::theory#d2)). The projector is
 //! re-symmetrised after each update ([theory §2.1.3](crate::theory#s2-1-3)). The rank threshold of level `i` is relative to the task's own scale
 //! `‖J_i‖_F`, not to `σ_max(J̃_i)`: a level whose `J̃_i` is tiny compared with `J_i` conflicts with the higher levels
@@ -38,7 +40,10 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::linalg::{mul_rows_to, ColumnSvd, LinalgError, RankPolicy, VelocityInverse};
+use crate::linalg::{
+    mul_rows_to, solve_full_column_rank, ColumnSvd, LinalgError, RankPolicy, VelocityInverse,
+    FAST_PATH_CONDITION_BOUND,
+};
 use crate::math::{JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
 use nalgebra::DVector;
@@ -128,8 +133,13 @@ pub struct LevelDiagnostics {
     pub rows: usize,
     /// The numerical rank of the limited Jacobian `J̃_i = J_i P^A_{i−1}`.
     pub rank: usize,
-    /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0).
+    /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0); for a [`Self::certified`]
+    /// level, the certificate's lower bound on it, `1/‖L⁻¹‖_F` less rounding, within a factor `√N` of the exact value
+    /// ([D15](crate::theory#d15)).
     pub smallest_kept_singular_value: Option<f64>,
+    /// `true` when the level was certified to have full column rank `N` and solved by the normal equations without
+    /// an SVD ([`crate::linalg::solve_full_column_rank`], [D15](crate::theory#d15)); `false` for the SVD.
+    pub certified: bool,
     /// `true` when `rank J̃_i = m_i`: every velocity the task asks for is realisable without disturbing the higher
     /// levels ([theory §2.1.5](crate::theory#s2-1-5)). A task with more rows than free joints is never fully achievable.
     pub fully_achievable: bool,
@@ -173,6 +183,10 @@ pub struct StackWorkspace<const N: usize> {
     residual: DVector<f64>,
     /// One decomposition per level, so that each level's is warm-started from its previous solve.
     svds: Vec<ColumnSvd<N>>,
+    /// Per level, whether the certified fast path is worth trying (D15): `false` after an SVD that found the level
+    /// rank-deficient or too ill-conditioned for the certificate, so that a level that never qualifies (the moment
+    /// task of the peer scene) does not pay for a failed attempt at every step.
+    try_certified: Vec<bool>,
     step: JointVector<N>,
     solution: StackSolution<N>,
 }
@@ -190,6 +204,7 @@ impl<const N: usize> StackWorkspace<N> {
             limited: TaskJacobian::zeros(max_rows.max(1)),
             residual: DVector::zeros(max_rows.max(1)),
             svds: vec![ColumnSvd::default(); max_levels],
+            try_certified: vec![true; max_levels],
             step: JointVector::zeros(),
             solution: StackSolution {
                 velocity: JointVector::zeros(),
@@ -229,6 +244,7 @@ pub fn solve_stack<'w, const N: usize>(
         limited,
         residual,
         svds,
+        try_certified,
         step,
         solution,
     } = workspace;
@@ -236,7 +252,8 @@ pub fn solve_stack<'w, const N: usize>(
     solution.projector.fill_with_identity();
     solution.levels.clear();
     let mut free = N; // rank of P^A_i
-    for ((level, &index), svd) in order.iter().enumerate().zip(svds.iter_mut()) {
+    let levels = order.iter().enumerate().zip(svds.iter_mut());
+    for (((level, &index), svd), try_certified) in levels.zip(try_certified.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
         // r = −λ_i e_i − J_i q̇_{i−1}
@@ -251,14 +268,34 @@ pub fn solve_stack<'w, const N: usize>(
             r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
-        svd.decompose_warm(&mut w, &parameters.rank_policy, task.jacobian().norm())
-            .map_err(|source| StackError::Linalg { level, source })?;
-        svd.solve(&w, &r, parameters.velocity_inverse, step)
-            .map_err(|source| StackError::Linalg { level, source })?;
+        let scale = task.jacobian().norm();
+        // A level that sees every joint direction free (P^A_{i−1} = I) and has at least N rows may be certified to have
+        // full column rank N, well conditioned (D15): then J̃_i⁺ r is the least-squares solution, solved without the SVD.
+        let eligible =
+            free == N && rows >= N && parameters.velocity_inverse == VelocityInverse::Truncated;
+        let certified = (eligible && *try_certified)
+            .then(|| solve_full_column_rank(&w, &r, &parameters.rank_policy, scale, step))
+            .flatten();
+        let (rank, smallest_kept_singular_value) = match certified {
+            Some(lower_bound) => (N, Some(lower_bound)),
+            None => {
+                svd.decompose_warm(&mut w, &parameters.rank_policy, scale)
+                    .map_err(|source| StackError::Linalg { level, source })?;
+                svd.solve(&w, &r, parameters.velocity_inverse, step)
+                    .map_err(|source| StackError::Linalg { level, source })?;
+                let (rank, smallest) = (svd.rank(), svd.smallest_kept());
+                // Worth trying next step if this one would have passed the certificate's condition bound
+                // (‖J̃‖_F = ‖J_i‖_F here, since P^A_{i−1} = I).
+                *try_certified = eligible
+                    && rank == N
+                    && smallest.is_some_and(|s| s * FAST_PATH_CONDITION_BOUND >= scale);
+                (rank, smallest)
+            }
+        };
         solution.velocity += &*step;
-        let rank = svd.rank();
         // rank P^A_i = rank P^A_{i−1} − rank J̃_i: once the stack has used every joint direction, P^A_i = 0 exactly
-        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term).
+        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term). A certified
+        // level always gets there.
         free = free.saturating_sub(rank);
         if free == 0 {
             solution.projector.fill(0.0);
@@ -269,7 +306,8 @@ pub fn solve_stack<'w, const N: usize>(
             task: index,
             rows,
             rank,
-            smallest_kept_singular_value: svd.smallest_kept(),
+            smallest_kept_singular_value,
+            certified: certified.is_some(),
             fully_achievable: rank == rows,
         });
     }

@@ -15,7 +15,9 @@ use servostack::avoidance::Cost;
 use servostack::camera::CameraIntrinsics;
 use servostack::controller::{ControllerParameters, StackController};
 use servostack::feature::{AllPoints, AreaNormalization, FeatureSet, InteractionSource};
-use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
+use servostack::law::{
+    control_step, AvoidanceProjection, ControlLaw, ControlWorkspace, StackChange,
+};
 use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
 use servostack::sim::Scene;
@@ -38,28 +40,40 @@ pub const DESIRED_Q: [f64; 6] = [0.0, 0.0, 0.0, 0.0, 0.3, 0.0];
 /// `q0 − q_d`.
 pub const START_OFFSET: [f64; 6] = [0.05, -0.04, -0.10, 0.25, -0.18, 0.12];
 
-/// The three variants of the peer scene (docs/peer_scene.md).
+/// The variants of the peer scene (docs/peer_scene.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Variant {
     /// Four points (8 rows), `q̇ = −λ J⁺ e`.
     A,
     /// ViSP's moment vector `(x_n, y_n, a_n, P_x, P_y, α)`, same law.
     B,
-    /// A with the continuity term (`q̇(0) = 0`) and the joint-limit projected gradient.
+    /// A with the continuity term (`q̇(0) = 0`) and the joint-limit projected gradient. The 8-row task has full rank,
+    /// so `P^A = 0` and the avoidance term is zero: servostack does less work here than ViSP, whose large projection
+    /// operator acts while `‖e‖ > 0.1`.
     C,
+    /// C with ViSP's large projection operator ([`AvoidanceProjection::VISP`]): the avoidance term is computed and
+    /// applied while joint 4 is in its activation band and `‖e‖ > 0.1`, as ViSP's `secondaryTaskJointLimitAvoidance`
+    /// is non-zero then. The comparable-work variant of C.
+    CL,
 }
 
 impl Variant {
     /// All variants, in order.
-    pub const ALL: [Variant; 3] = [Variant::A, Variant::B, Variant::C];
+    pub const ALL: [Variant; 4] = [Variant::A, Variant::B, Variant::C, Variant::CL];
 
-    /// `"A"`, `"B"`, `"C"`.
+    /// `"A"`, `"B"`, `"C"`, `"CL"`.
     pub fn name(self) -> &'static str {
         match self {
             Variant::A => "A",
             Variant::B => "B",
             Variant::C => "C",
+            Variant::CL => "CL",
         }
+    }
+
+    /// With the joint-limit avoidance and the continuity term (C and CL).
+    fn avoids(self) -> bool {
+        matches!(self, Variant::C | Variant::CL)
     }
 }
 
@@ -149,7 +163,7 @@ impl ServoLoop {
             .expect("desired view");
         let desired = desired.observation().expect("desired observation");
         let task = match variant {
-            Variant::A | Variant::C => VisualTask::new(
+            Variant::A | Variant::C | Variant::CL => VisualTask::new(
                 "points",
                 Box::new(AllPoints::new(4).expect("4 points")),
                 &desired,
@@ -169,12 +183,17 @@ impl ServoLoop {
             }
         }
         .expect("task");
-        let kappa = if variant == Variant::C { KAPPA } else { 0.0 };
-        let law = ControlLaw::new(MU, kappa).expect("law");
+        let kappa = if variant.avoids() { KAPPA } else { 0.0 };
+        let mut law = ControlLaw::new(MU, kappa).expect("law");
+        if variant == Variant::CL {
+            law = law
+                .with_avoidance_projection(AvoidanceProjection::VISP)
+                .expect("projection");
+        }
         Self::with(scene, vec![task], law, |values| Drive::Law {
             workspace: ControlWorkspace::new(values),
-            avoid: variant == Variant::C,
-            smooth_start: variant == Variant::C,
+            avoid: variant.avoids(),
+            smooth_start: variant.avoids(),
         })
     }
 
@@ -350,6 +369,16 @@ impl ServoLoop {
     /// The evaluated tasks of the last step.
     pub fn values(&self) -> &[TaskValue<6>] {
         &self.values
+    }
+
+    /// The avoidance term of the last step, `u − q̇_n` (`None` for the controller loops).
+    pub fn avoidance(&self) -> Option<JointVector<6>> {
+        match &self.drive {
+            Drive::Law { workspace, .. } => {
+                Some(workspace.last_output().law() - workspace.stack_solution().velocity())
+            }
+            Drive::Controller { .. } => None,
+        }
     }
 
     /// The controller, for the controller loops.

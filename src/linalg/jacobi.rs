@@ -22,13 +22,18 @@ pub(super) fn jacobi<const L: usize, const N: usize>(
     // An L-term dot product carries a rounding error of about L ε √(αβ): asking for less never converges.
     let tolerance = (L.max(1) as f64) * f64::EPSILON;
     let columns = columns.min(N);
+    if columns < 2 {
+        return Ok(()); // no pair to rotate (a one-row level of the stack, decomposed on its smaller side)
+    }
     let mut norms = [0.0; N];
     // Round-robin ("circle") order: each round rotates disjoint pairs, whose dependency chains (a division and a
     // square root or two per rotation) the processor then overlaps. Every pair is visited once per sweep. The schedule
     // of a sweep is computed once: round r rotates the pairs `schedule[r][..counts[r]]` (at most `N` rounds of at most
-    // `N` pairs, since `players ≤ N + 1`), without the pairs of the dummy player an odd count adds.
+    // `N` pairs, since `players ≤ N + 1`), without the pairs of the dummy player an odd count adds. Column indices are
+    // stored as bytes: the schedule is initialised at every call, and a 6-joint one then fills 72 bytes, not 576.
+    const { assert!(N <= u8::MAX as usize, "at most 255 joints") };
     let players = columns + columns % 2;
-    let mut schedule = [[(0, 0); N]; N];
+    let mut schedule = [[(0u8, 0u8); N]; N];
     let mut counts = [0; N];
     for ((round, pairs), count) in schedule.iter_mut().enumerate().zip(counts.iter_mut()) {
         if round + 1 >= players {
@@ -37,7 +42,7 @@ pub(super) fn jacobi<const L: usize, const N: usize>(
         for k in 0..players / 2 {
             let (p, q) = round_robin_pair(players, round, k);
             if q < columns {
-                pairs[*count] = (p, q);
+                pairs[*count] = (p as u8, q as u8);
                 *count += 1;
             }
         }
@@ -53,6 +58,7 @@ pub(super) fn jacobi<const L: usize, const N: usize>(
         let mut rotated = false;
         for (pairs, &count) in schedule.iter().zip(counts.iter()) {
             for &(p, q) in &pairs[..count] {
+                let (p, q) = (usize::from(p), usize::from(q));
                 let (alpha, beta) = (norms[p], norms[q]);
                 if alpha <= negligible || beta <= negligible {
                     continue;

@@ -24,11 +24,17 @@
 //! one on its `N × N` triangular factor. In a control loop the rotations start from the previous step's right singular
 //! vectors ([`ColumnSvd::decompose_warm`]). Columns that are zero (or rounding noise) cost no rotation.
 //!
+//! **Certified fast path** ([`solve_full_column_rank`], [D15](crate::theory#d15)): a matrix of `N` to 16 rows that a
+//! Cholesky-based bound certifies to have full column rank and `σ_max/σ_min ≤ 10³` is solved by the normal equations,
+//! refined once, without the SVD; the result is the SVD's to `10⁻¹² ‖r‖/σ_min`. Any doubt leaves the decision to the
+//! SVD.
+//!
 //! **Rank policy** ([`RankPolicy`], [D2](crate::theory#d2)): a singular value is kept when `σ_k > max(relative · σ_max, absolute)`, with
 //! `relative = 1e−6` by default (ViSP's `svThreshold`) and a tiny absolute floor so that a zero matrix has rank 0.
 //! For a limited Jacobian `J̃_i = J_i P` the stack measures `σ_max` on the task's own scale, `max(σ_max(J̃_i), ‖J_i‖_F)`
 //! ([`ColumnSvd::decompose_with_scale`]).
 
+mod certified;
 mod jacobi;
 mod projector;
 mod pseudo_inverse;
@@ -36,6 +42,7 @@ mod svd;
 #[cfg(test)]
 mod tests;
 
+pub use certified::{solve_full_column_rank, FAST_PATH_CONDITION_BOUND};
 pub use projector::{null_space_projector, symmetrize};
 pub use pseudo_inverse::pseudo_inverse;
 pub use svd::ColumnSvd;

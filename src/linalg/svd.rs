@@ -127,7 +127,6 @@ impl<const N: usize> ColumnSvd<N> {
         };
         self.basis_age = None; // until this decomposition succeeds with a full basis
         if rows < N {
-            self.v = JointMatrix::identity();
             self.decompose_wide(work, scale)?;
         } else {
             if age.is_none() {
@@ -211,6 +210,19 @@ impl<const N: usize> ColumnSvd<N> {
         S: StorageMut<f64, R, Const<N>, RStride = U1>,
     {
         let rows = work.nrows();
+        self.v.fill(0.0);
+        self.sigma.fill(0.0);
+        if rows == 1 {
+            // No rotation: σ = ‖a‖, v = a/σ, u = 1, w = [σ].
+            let sigma = work.row(0).norm();
+            self.sigma[0] = sigma;
+            if sigma > 0.0 {
+                self.v.set_column(0, &(work.row(0).transpose() / sigma));
+            }
+            work.fill(0.0);
+            work[(0, 0)] = sigma;
+            return Ok(());
+        }
         let mut transposed = JointMatrix::<N>::zeros();
         for (mut column, row) in transposed.column_iter_mut().zip(work.row_iter()) {
             column.tr_copy_from(&row);
@@ -218,8 +230,6 @@ impl<const N: usize> ColumnSvd<N> {
         let mut left = JointMatrix::<N>::identity();
         // Rotating whole columns of U (N entries) is harmless: rows m.. of its first m columns stay zero.
         jacobi(&mut transposed, rows, &mut left, scale)?;
-        self.v.fill(0.0);
-        self.sigma.fill(0.0);
         work.fill(0.0);
         for k in 0..rows {
             let sigma = transposed.column(k).norm();

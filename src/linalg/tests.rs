@@ -241,3 +241,132 @@ fn bad_inputs_are_errors() {
         Err(LinalgError::NonFiniteMatrix { row: 1, column: 2, value }) if value.is_nan()
     ));
 }
+
+/// An `m × 6` matrix `U diag(σ) Vᵀ` with random orthonormal `U`, `V` (QR of random matrices) and singular values
+/// spread log-uniformly from `scale` down to `scale/condition`.
+fn conditioned_matrix(
+    rows: usize,
+    left: &[f64],
+    right: &[f64],
+    condition: f64,
+    scale: f64,
+) -> OMatrix<f64, Dyn, Const<6>> {
+    let u = OMatrix::<f64, Dyn, Const<6>>::from_row_slice_generic(
+        Dyn(rows),
+        Const::<6>,
+        &left[..rows * 6],
+    )
+    .qr()
+    .q();
+    let v = SMatrix::<f64, 6, 6>::from_row_slice(&right[..36]).qr().q();
+    let sigma = JointVector::<6>::from_fn(|k, _| scale * condition.powf(-(k as f64) / 5.0));
+    u * JointMatrix::<6>::from_diagonal(&sigma) * v.transpose()
+}
+
+/// The SVD path's least-squares solution and rank, the reference of the fast path.
+fn svd_solution<const N: usize>(
+    a: &OMatrix<f64, Dyn, Const<N>>,
+    r: &DVector<f64>,
+    policy: &RankPolicy,
+    scale: f64,
+) -> (JointVector<N>, usize) {
+    let mut work = a.clone();
+    let mut svd = ColumnSvd::<N>::default();
+    svd.decompose_with_scale(&mut work, policy, scale).unwrap();
+    let mut x = JointVector::<N>::zeros();
+    svd.solve(&work, r, VelocityInverse::Truncated, &mut x)
+        .unwrap();
+    (x, svd.rank())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// D15: on random matrices of 6 to 10 rows with condition numbers from 1 to 10⁹ and magnitudes from 10⁻⁴ to 10⁴,
+    /// the fast path answers only when the SVD finds full rank, its solution equals the SVD's within
+    /// `10⁻¹² ‖r‖/σ_min`, its bound is a true lower bound of `σ_min` within `√N`, it always answers when
+    /// `N κ ≤ 1000` (the certificate is not vacuous) and never when `κ > 1000` (ill-conditioned or rank-deficient: the
+    /// SVD decides).
+    #[test]
+    fn fast_path_agrees_with_the_svd(
+        rows in 6usize..=10,
+        left in proptest::collection::vec(-1.0..1.0f64, 60),
+        right in proptest::collection::vec(-1.0..1.0f64, 36),
+        residual in proptest::collection::vec(-1.0..1.0f64, 10),
+        log_condition in 0.0..9.0f64,
+        log_scale in -4.0..4.0f64,
+    ) {
+        let (condition, scale) = (10f64.powf(log_condition), 10f64.powf(log_scale));
+        let a = conditioned_matrix(rows, &left, &right, condition, scale);
+        let r = DVector::from_column_slice(&residual[..rows]) * scale;
+        let policy = RankPolicy::default();
+        let sigma_min = scale / condition;
+        let mut fast = JointVector::<6>::repeat(f64::NAN);
+        let answer = solve_full_column_rank(&a, &r, &policy, 0.0, &mut fast);
+        let (reference, rank) = svd_solution(&a, &r, &policy, 0.0);
+        if condition * 6.0 <= FAST_PATH_CONDITION_BOUND {
+            prop_assert!(answer.is_some(), "κ = {condition:.3e}: the certificate must hold");
+        }
+        if condition > FAST_PATH_CONDITION_BOUND {
+            prop_assert!(answer.is_none(), "κ = {condition:.3e}: the SVD must decide");
+        }
+        if let Some(lower) = answer {
+            prop_assert_eq!(rank, 6);
+            prop_assert!(lower <= sigma_min * (1.0 + 1e-12) && lower >= sigma_min / 6f64.sqrt() * (1.0 - 1e-6),
+                "bound {lower:.6e}, σ_min {sigma_min:.6e}");
+            let tolerance = 1e-12 * r.norm() / sigma_min;
+            prop_assert!((fast - reference).norm() <= tolerance,
+                "κ = {condition:.3e}: |Δx| = {:.3e} > {tolerance:.3e}", (fast - reference).norm());
+        } else {
+            prop_assert!(fast.iter().all(|x| x.is_nan()), "out written without a certificate");
+        }
+    }
+}
+
+/// The rank decision of the fast path: it never certifies full rank where the SVD's rank policy would truncate,
+/// whatever the policy. Each case would fail if the certificate ignored the policy's threshold (a relative threshold
+/// above `1/FAST_PATH_CONDITION_BOUND`, the task's own scale of a limited Jacobian, the absolute floor) or if it
+/// trusted a nearly singular matrix.
+#[test]
+fn fast_path_defers_the_rank_decision_to_the_svd() {
+    let left: Vec<f64> = (0..60).map(|k| ((k * 7 + 3) as f64 * 0.37).sin()).collect();
+    let right: Vec<f64> = (0..36).map(|k| ((k * 5 + 1) as f64 * 0.53).cos()).collect();
+    let r = DVector::from_fn(8, |k, _| ((k + 1) as f64).sin());
+    let mut out = JointVector::<6>::zeros();
+    // Nearly rank-deficient under the default policy (σ_min/σ_max = 10⁻⁷): the SVD truncates, the fast path defers.
+    let a = conditioned_matrix(8, &left, &right, 1e7, 1.0);
+    assert_eq!(svd_solution(&a, &r, &RankPolicy::default(), 0.0).1, 5);
+    assert!(solve_full_column_rank(&a, &r, &RankPolicy::default(), 0.0, &mut out).is_none());
+    // Well conditioned (κ = 4), but a policy with relative threshold 0.3 truncates σ_min = 0.25 σ_max.
+    let a = conditioned_matrix(8, &left, &right, 4.0, 1.0);
+    let coarse = RankPolicy::new(0.3, 0.0).unwrap();
+    assert!(svd_solution(&a, &r, &coarse, 0.0).1 < 6);
+    assert!(solve_full_column_rank(&a, &r, &coarse, 0.0, &mut out).is_none());
+    assert!(solve_full_column_rank(&a, &r, &RankPolicy::default(), 0.0, &mut out).is_some());
+    // The same matrix as the limited Jacobian of a task a million times larger: its directions are conflicts, dropped.
+    assert_eq!(svd_solution(&a, &r, &RankPolicy::default(), 1e7).1, 0);
+    assert!(solve_full_column_rank(&a, &r, &RankPolicy::default(), 1e7, &mut out).is_none());
+    // A well-conditioned matrix below the absolute floor has rank 0.
+    let tiny = conditioned_matrix(8, &left, &right, 2.0, 1e-13);
+    assert_eq!(
+        svd_solution(&tiny, &(&r * 1e-13), &RankPolicy::default(), 0.0).1,
+        0
+    );
+    assert!(
+        solve_full_column_rank(&tiny, &(&r * 1e-13), &RankPolicy::default(), 0.0, &mut out)
+            .is_none()
+    );
+    // Too few rows, or a non-finite entry: no answer.
+    let wide = a.rows(0, 5).into_owned();
+    assert!(solve_full_column_rank(
+        &wide,
+        &r.rows(0, 5).into_owned(),
+        &RankPolicy::default(),
+        0.0,
+        &mut out
+    )
+    .is_none());
+    let mut broken = conditioned_matrix(8, &left, &right, 2.0, 1.0);
+    broken[(3, 2)] = f64::NAN;
+    assert!(solve_full_column_rank(&broken, &r, &RankPolicy::default(), 0.0, &mut out).is_none());
+}

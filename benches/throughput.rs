@@ -1,0 +1,110 @@
+//! Study throughput on 1 and on all cores, and the simulation's cost per iteration beside the controller step it wraps.
+//!
+//! * `study`: the convergence-domain study of the four methods on `assets/scenarios/paper_afma6.toml`, the eight
+//!   standard families, [`DRAWS`] draws per family, seed 1, run in a rayon pool of 1 thread, then of every core
+//!   (`available_parallelism`). One JSON line per pool: draws, simulated control iterations, seconds, draws/s,
+//!   iterations/s; a last line gives the scaling (rate on all cores / rate on one).
+//! * `sim_overhead`: the full method (`StackController`) on the paper scenario through `Scenario::run_experiment`
+//!   (simulation: sensing, tasks, controller, saturation, log), ns per simulated iteration, beside the controller step of
+//!   the `control_loop` bench (`step/paper_four_tasks_controller`: observation, the four paper tasks, controller with
+//!   avoidance, prediction and criteria, Euler step; no log, no saturation) on the peer scene, ns per step, and the
+//!   overhead `sim / step − 1`. The two runs visit different configurations (the scenario's episode against the peer
+//!   episode), so the overhead is indicative; the best of [`REPEATS`] runs of each.
+//!
+//! Run with `cargo bench --bench throughput` (both) or `cargo bench --bench throughput -- study` (one). Under
+//! `cargo test --benches` (no `--bench` argument) it runs one draw per family and one repeat: a smoke test.
+
+#[path = "common/servo_loop.rs"]
+mod servo_loop;
+
+use servo_loop::ServoLoop;
+use servostack::scenario::{RunKind, Scenario};
+use servostack::study::{standard_families, Study};
+use std::path::Path;
+use std::time::Instant;
+
+/// Draws per family of the study benchmark.
+const DRAWS: usize = 4;
+/// Repeats of the simulation and of the controller episode (the best is kept).
+const REPEATS: usize = 5;
+/// Steps per controller episode (as the peer protocol).
+const EPISODE: usize = 1000;
+
+fn scenario() -> Scenario {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/paper_afma6.toml");
+    Scenario::from_file(&path).expect("paper scenario")
+}
+
+fn study(draws: usize) {
+    let scenario = scenario();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut rates = Vec::new();
+    for threads in [1, cores] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        let study = Study::new(&scenario, standard_families(), draws, 1).expect("study");
+        let start = Instant::now();
+        let result = pool.install(|| study.run::<6>()).expect("study run");
+        let seconds = start.elapsed().as_secs_f64();
+        let total_draws = draws * result.families.len();
+        let rate = result.iterations as f64 / seconds;
+        rates.push(rate);
+        println!(
+            "{{\"bench\": \"study\", \"threads\": {threads}, \"draws\": {total_draws}, \"iterations\": {}, \"seconds\": {seconds:.3}, \"draws_per_s\": {:.2}, \"iterations_per_s\": {rate:.0}}}",
+            result.iterations,
+            total_draws as f64 / seconds
+        );
+    }
+    println!(
+        "{{\"bench\": \"study_scaling\", \"cores\": {cores}, \"speedup\": {:.2}}}",
+        rates[1] / rates[0]
+    );
+}
+
+fn sim_overhead(repeats: usize) {
+    let scenario = scenario();
+    let experiment = scenario.experiment::<6>().expect("experiment");
+    let mut sim_ns = f64::INFINITY;
+    let mut iterations = 0;
+    for _ in 0..repeats {
+        let start = Instant::now();
+        let run = scenario
+            .run_experiment(&experiment, RunKind::StackController)
+            .expect("run");
+        let elapsed = start.elapsed().as_nanos() as f64;
+        iterations = run.iterations();
+        sim_ns = sim_ns.min(elapsed / iterations as f64);
+    }
+    let mut servo = ServoLoop::paper();
+    let mut step_ns = f64::INFINITY;
+    for _ in 0..repeats {
+        servo.reset();
+        servo.settle();
+        let start = Instant::now();
+        for _ in 0..EPISODE {
+            servo.step();
+        }
+        step_ns = step_ns.min(start.elapsed().as_nanos() as f64 / EPISODE as f64);
+    }
+    println!(
+        "{{\"bench\": \"sim_overhead\", \"sim_iterations\": {iterations}, \"sim_ns_per_iteration\": {sim_ns:.0}, \"controller_step_ns\": {step_ns:.0}, \"overhead\": {:.2}}}",
+        sim_ns / step_ns - 1.0
+    );
+}
+
+fn main() {
+    let benchmarking = std::env::args().any(|a| a == "--bench");
+    let selected: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let wanted = |name: &str| selected.is_empty() || selected.iter().any(|s| s == name);
+    if wanted("study") {
+        study(if benchmarking { DRAWS } else { 1 });
+    }
+    if wanted("sim_overhead") {
+        sim_overhead(if benchmarking { REPEATS } else { 1 });
+    }
+}
