@@ -4,6 +4,7 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 pub mod avoidance;
+pub mod bounds;
 pub mod camera;
 pub mod continuity;
 pub mod controller;

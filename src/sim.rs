@@ -23,6 +23,7 @@
 //! prediction, the criteria, and the image points; and the controller's event log.
 
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
+use crate::bounds::PERIOD_S;
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
@@ -268,7 +269,7 @@ impl<const N: usize> Scene<N> {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimulationParameters {
-    /// The control period `Δt` (s).
+    /// The control period `Δt` (s), within [`PERIOD_S`].
     pub period: f64,
     /// The iteration budget.
     pub max_iterations: usize,
@@ -311,8 +312,8 @@ impl SimulationParameters {
                 expected,
             })
         };
-        if !(self.period.is_finite() && self.period > 0.0) {
-            return invalid("period", self.period, "finite and > 0");
+        if !PERIOD_S.contains(self.period) {
+            return invalid("period", self.period, PERIOD_S.text);
         }
         if !(self.convergence_error.is_finite() && self.convergence_error > 0.0) {
             return invalid(
