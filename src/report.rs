@@ -10,7 +10,7 @@
 //!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback", "task": str,
 //!               "law_jump": float, "jump": float, "max_step_after": float}],
 //!   "max_velocity_jump": float, "max_velocity_step": float, "max_acceleration": float,
-//!   "final_error_norm": float, "min_normalized_margin": float}]}
+//!   "final_error_norm": float|null, "min_normalized_margin": float}]}
 //! ```
 //!
 //! Continuity (D14): `law_jump` is the jump `‖u(τ) − q̇(τ⁻)‖` the law alone would make at a change, `jump` the step of
@@ -111,14 +111,15 @@ impl std::fmt::Display for Summary {
                 .collect();
             writeln!(
                 f,
-                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.1e} {:>10.2e} {:>7.3}  {}",
+                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.1e} {:>10} {:>7.3}  {}",
                 run.name,
                 run.outcome,
                 run.iterations,
                 run.joint.map_or("-".into(), |j| j.to_string()),
                 run.max_velocity_jump,
                 run.max_velocity_step,
-                run.final_error_norm,
+                run.final_error_norm
+                    .map_or("-".into(), |e| format!("{e:.2e}")),
                 run.min_normalized_margin,
                 events.join(", ")
             )?;
@@ -202,8 +203,8 @@ pub struct RunSummary {
     pub max_velocity_step: f64,
     /// `max_velocity_step / Δt` (per s²).
     pub max_acceleration: f64,
-    /// `‖e‖` over all tasks at the end.
-    pub final_error_norm: f64,
+    /// `‖e‖` over all tasks at the end; `null` for a run that ended before its first iteration (no image to measure).
+    pub final_error_norm: Option<f64>,
     /// The smallest distance to a joint limit over time and joints, as a fraction of the range.
     pub min_normalized_margin: f64,
     /// The point lost, for a `feature_lost` outcome (extra field).

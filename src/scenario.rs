@@ -50,7 +50,9 @@ use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
 use crate::robot::{builtin, RobotError, SerialChain};
-use crate::sim::{simulate, Drive, Run, Scene, Sensing, SimError, SimulationParameters};
+use crate::sim::{
+    simulate_with, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
+};
 use crate::stack::StackParameters;
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
@@ -683,6 +685,23 @@ impl Scenario {
         experiment: &Experiment<N>,
         kind: RunKind,
     ) -> Result<Run<N>, ScenarioError> {
+        let mut records = Vec::new();
+        let mut run = self.run_experiment_with(experiment, kind, &mut records)?;
+        run.records = records;
+        Ok(run)
+    }
+
+    /// As [`Scenario::run_experiment`], with the records given to `log` ([`simulate_with`]): a run of any length in
+    /// bounded memory with [`crate::sim::SummaryOnly`], [`crate::sim::Decimated`] or [`crate::sim::JsonLines`].
+    ///
+    /// # Errors
+    /// As [`Scenario::run`].
+    pub fn run_experiment_with<const N: usize>(
+        &self,
+        experiment: &Experiment<N>,
+        kind: RunKind,
+        log: &mut dyn RunLog<N>,
+    ) -> Result<Run<N>, ScenarioError> {
         let desired_view = experiment
             .scene
             .view_from(&experiment.desired_camera_from_target)?;
@@ -762,12 +781,13 @@ impl Scenario {
             },
             sensing: sensing.as_ref(),
         };
-        Ok(simulate(
+        Ok(simulate_with(
             &experiment.scene,
             &tasks,
             drive,
             &experiment.start,
             &self.simulation,
+            log,
         )?)
     }
 }
