@@ -27,6 +27,47 @@ use crate::sim::{Outcome, Run};
 use serde::Serialize;
 use std::path::Path;
 
+/// An error and its causes, for people: the error's `Display`, then `: cause` for every source whose message the text
+/// does not already hold (a wrapper written `"…: {0}"` repeats its source). Never the `Debug` form, which can hold a
+/// whole input file.
+///
+/// ```
+/// use servostack::report::ErrorChain;
+/// let error = servostack::scenario::Scenario::from_toml_str("name = 3", None).unwrap_err();
+/// let text = ErrorChain(&error).to_string();
+/// assert!(text.starts_with("scenario syntax: ") && text.contains("name"));
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct ErrorChain<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl std::fmt::Display for ErrorChain<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut text = self.0.to_string();
+        let mut source = self.0.source();
+        while let Some(cause) = source {
+            let message = cause.to_string();
+            if !text.contains(&message) {
+                text.push_str(": ");
+                text.push_str(&message);
+            }
+            source = cause.source();
+        }
+        f.write_str(&text)
+    }
+}
+
+/// The exit code of a program's `main` (the examples'): success, or `error: ` and the [`ErrorChain`] on stderr and
+/// failure.
+pub fn exit_code(result: Result<(), Box<dyn std::error::Error>>) -> std::process::ExitCode {
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {}", ErrorChain(&*error));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 /// Errors while writing a report.
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error)]
