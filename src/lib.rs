@@ -10,6 +10,8 @@ pub mod continuity;
 pub mod controller;
 pub mod depth;
 pub mod feature;
+#[doc(hidden)]
+pub mod fuzz;
 pub mod law;
 pub mod linalg;
 pub mod math;
