@@ -92,3 +92,21 @@ pub const PERIOD_S: PhysicalRange = PhysicalRange {
     high: 60.0,
     text: "finite, within [1e-6, 60] s",
 };
+
+/// Why [`read_text_file`] read nothing.
+pub(crate) enum ReadFailure {
+    /// The operating system's error.
+    Io(std::io::Error),
+    /// The file's size (bytes), above the limit.
+    TooLarge(u64),
+}
+
+/// Reads a text file of at most `limit` bytes, refusing a larger one before reading it (the parsers' inputs,
+/// [D15](crate::theory#d15)).
+pub(crate) fn read_text_file(path: &std::path::Path, limit: usize) -> Result<String, ReadFailure> {
+    let bytes = std::fs::metadata(path).map_err(ReadFailure::Io)?.len();
+    if bytes > limit as u64 {
+        return Err(ReadFailure::TooLarge(bytes));
+    }
+    std::fs::read_to_string(path).map_err(ReadFailure::Io)
+}

@@ -391,3 +391,29 @@ fn a_velocity_whose_norm_overflows_is_not_sent() {
     );
     assert_eq!(result.unwrap_err(), LawError::NonFiniteVelocity);
 }
+
+#[test]
+fn files_larger_than_the_limits_are_not_read() {
+    let dir = std::env::temp_dir().join(format!("servostack-hostile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Sparse files: their size is what is checked, before any byte is read.
+    let urdf = dir.join("huge.urdf");
+    std::fs::File::create(&urdf)
+        .unwrap()
+        .set_len(servostack::robot::MAX_URDF_BYTES as u64 + 1)
+        .unwrap();
+    assert!(matches!(
+        SerialChain::<6>::from_urdf_file(&urdf, "a", "b"),
+        Err(RobotError::UrdfTooLarge { bytes, .. }) if bytes == servostack::robot::MAX_URDF_BYTES as u64 + 1
+    ));
+    let scenario = dir.join("huge.toml");
+    std::fs::File::create(&scenario)
+        .unwrap()
+        .set_len(servostack::scenario::MAX_SCENARIO_BYTES as u64 + 1)
+        .unwrap();
+    assert!(matches!(
+        Scenario::from_file(&scenario),
+        Err(ScenarioError::TooLarge { .. })
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

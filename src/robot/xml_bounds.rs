@@ -6,6 +6,7 @@
 //! and its element nesting depth.
 
 use super::RobotError;
+use crate::bounds::{read_text_file, ReadFailure};
 use std::path::Path;
 
 /// The largest URDF text accepted (bytes): 8 MiB. The largest robot descriptions (humanoids with many links,
@@ -92,18 +93,16 @@ fn tag_end(bytes: &[u8], from: usize) -> (usize, bool) {
 /// # Errors
 /// [`RobotError::File`] when the file cannot be read, [`RobotError::UrdfTooLarge`].
 pub(crate) fn read_urdf_file(path: &Path) -> Result<String, RobotError> {
-    let file_error = |e: std::io::Error| RobotError::File {
-        path: path.display().to_string(),
-        message: e.to_string(),
-    };
-    let bytes = std::fs::metadata(path).map_err(file_error)?.len();
-    if bytes > MAX_URDF_BYTES as u64 {
-        return Err(RobotError::UrdfTooLarge {
+    read_text_file(path, MAX_URDF_BYTES).map_err(|failure| match failure {
+        ReadFailure::Io(e) => RobotError::File {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        },
+        ReadFailure::TooLarge(bytes) => RobotError::UrdfTooLarge {
             bytes,
             limit: MAX_URDF_BYTES,
-        });
-    }
-    std::fs::read_to_string(path).map_err(file_error)
+        },
+    })
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@
 //! bracket nesting depth.
 
 use super::ScenarioError;
+use crate::bounds::{read_text_file, ReadFailure};
 use std::path::Path;
 
 /// The largest scenario text accepted (bytes): 1 MiB, a hundred times the largest shipped scenario.
@@ -82,18 +83,16 @@ pub(super) fn check_scenario_text(text: &str) -> Result<(), ScenarioError> {
 /// # Errors
 /// [`ScenarioError::Io`], [`ScenarioError::TooLarge`].
 pub(super) fn read_scenario_file(path: &Path) -> Result<String, ScenarioError> {
-    let io = |source| ScenarioError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let bytes = std::fs::metadata(path).map_err(io)?.len();
-    if bytes > MAX_SCENARIO_BYTES as u64 {
-        return Err(ScenarioError::TooLarge {
+    read_text_file(path, MAX_SCENARIO_BYTES).map_err(|failure| match failure {
+        ReadFailure::Io(source) => ScenarioError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+        ReadFailure::TooLarge(bytes) => ScenarioError::TooLarge {
             bytes,
             limit: MAX_SCENARIO_BYTES,
-        });
-    }
-    std::fs::read_to_string(path).map_err(io)
+        },
+    })
 }
 
 #[cfg(test)]
