@@ -64,8 +64,10 @@ fn control_law(c: &mut Criterion) {
         StackChange::Changed,
     )
     .unwrap();
+    let mut time = 0.0;
     c.bench_function("control_step_4_levels_with_avoidance_n6", |b| {
         b.iter(|| {
+            time += 0.01; // the law's time must increase from step to step
             let out = control_step(
                 &law,
                 &mut ws,
@@ -73,7 +75,7 @@ fn control_law(c: &mut Criterion) {
                 &[0, 1, 2, 3],
                 cost,
                 black_box(&q),
-                0.1,
+                time,
                 StackChange::Unchanged,
             )
             .unwrap();

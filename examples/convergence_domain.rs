@@ -133,11 +133,8 @@ fn run<const N: usize>(
     Ok((result, slice))
 }
 
-fn main() {
-    if let Err(error) = try_main() {
-        eprintln!("convergence_domain: {error}");
-        std::process::exit(1);
-    }
+fn main() -> std::process::ExitCode {
+    servostack::report::exit_code(try_main())
 }
 
 fn try_main() -> Result<(), Box<dyn std::error::Error>> {

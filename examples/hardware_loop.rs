@@ -72,7 +72,11 @@ impl FakeRobot {
     }
 }
 
-fn main() -> Result<(), Box<dyn Error>> {
+fn main() -> std::process::ExitCode {
+    servostack::report::exit_code(run())
+}
+
+fn run() -> Result<(), Box<dyn Error>> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/paper_afma6.toml");
     let scenario = Scenario::from_file(&path)?;
     let experiment = scenario.experiment::<6>()?;

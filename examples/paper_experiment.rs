@@ -8,7 +8,11 @@ use servostack::report::write_experiment;
 use servostack::scenario::Scenario;
 use std::path::PathBuf;
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    servostack::report::exit_code(run())
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let out = match args.as_slice() {
         [] => PathBuf::from("target/paper_experiment"),

@@ -9,7 +9,11 @@ use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 use servostack::math::JointVector;
 use servostack::task::{LinearTask, Task, TaskJacobian, TaskValue};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    servostack::report::exit_code(run())
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let target = JointVector::<6>::new(0.3, -0.2, 0.1, 0.5, -0.4, 0.2);
     let rows = [2usize, 1, 1, 2];
     let tasks: Vec<LinearTask<6>> = rows

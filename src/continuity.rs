@@ -14,21 +14,25 @@
 
 use crate::math::JointVector;
 
-/// The state of the transition since the last stack modification: `τ`, `q̇(τ⁻)` and `u(τ)`.
+/// The state of the transition since the last stack modification: `τ`, `q̇(τ⁻)` and `u(τ)`; and the law's clock, the
+/// time of its last step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition<const N: usize> {
     switch_time: f64,
     velocity_before: JointVector<N>,
     law_at_switch: JointVector<N>,
+    /// The time of the last step of the law ([`crate::law::control_step`]), which the next must follow strictly.
+    last_step_time: f64,
 }
 
 impl<const N: usize> Default for Transition<N> {
-    /// No transition: `q̇(τ⁻) = u(τ) = 0` at `τ = 0`, so the blend is `u(t)` itself.
+    /// No transition: `q̇(τ⁻) = u(τ) = 0` at `τ = 0`, so the blend is `u(t)` itself; no step taken yet.
     fn default() -> Self {
         Self {
             switch_time: 0.0,
             velocity_before: JointVector::zeros(),
             law_at_switch: JointVector::zeros(),
+            last_step_time: f64::NEG_INFINITY,
         }
     }
 }
@@ -50,6 +54,16 @@ impl<const N: usize> Transition<N> {
     /// The time `τ` (s) of the last stack modification.
     pub fn switch_time(&self) -> f64 {
         self.switch_time
+    }
+
+    /// The time (s) of the last step of the law, `−∞` before the first: the next step's time must be strictly later.
+    pub fn last_step_time(&self) -> f64 {
+        self.last_step_time
+    }
+
+    /// Records a step of the law at `time` (s).
+    pub(crate) fn stepped_at(&mut self, time: f64) {
+        self.last_step_time = time;
     }
 
     /// The velocity sent just before the last modification, `q̇(τ⁻)`.

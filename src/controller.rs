@@ -65,6 +65,7 @@
 //! the predicted cost, and every task's criteria; re-insertions the prediction with the task back.
 
 use crate::avoidance::{Cost, CostError};
+use crate::bounds::DURATION_S;
 use crate::law::{
     control_step, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
 };
@@ -207,8 +208,6 @@ impl Default for ControllerParameters {
     }
 }
 
-/// Physical ranges the time parameters must lie in: a horizon or a wait beyond a day is a unit error.
-const MAX_SECONDS: f64 = 86_400.0;
 /// The largest count of transitions (`1/μ`) a wait or horizon may span.
 const MAX_TRANSITIONS: f64 = 1e4;
 
@@ -248,8 +247,8 @@ impl ControllerParameters {
         check(
             "prediction_horizon",
             v,
-            in_range(v, 0.0, MAX_SECONDS),
-            "in [0, 86400] s",
+            DURATION_S.contains(v),
+            DURATION_S.text,
         )?;
         let v = self.look_ahead_transitions;
         check(
@@ -291,15 +290,15 @@ impl ControllerParameters {
         check(
             "reinsertion_dwell",
             v,
-            in_range(v, 0.0, MAX_SECONDS),
-            "in [0, 86400] s",
+            DURATION_S.contains(v),
+            DURATION_S.text,
         )?;
         let v = self.stall_timeout;
         check(
             "stall_timeout",
             v,
-            v.is_finite() && v > 0.0 && v <= MAX_SECONDS,
-            "in (0, 86400] s",
+            v > 0.0 && DURATION_S.contains(v),
+            "> 0 and within [0, 86400] s",
         )?;
         let v = f64::from(self.max_removals);
         check("max_removals", v, self.max_removals >= 1, "≥ 1")?;

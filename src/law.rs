@@ -36,8 +36,9 @@
 //! ```
 
 use crate::avoidance::{Cost, CostError};
+use crate::bounds::{GAIN_PER_S, TRANSITION_GAIN_PER_S};
 use crate::continuity::Transition;
-use crate::math::{all_finite, first_non_finite, JointVector};
+use crate::math::{first_non_finite, JointVector};
 use crate::stack::{solve_stack, StackError, StackParameters, StackSolution, StackWorkspace};
 use crate::task::TaskValue;
 
@@ -45,14 +46,15 @@ use crate::task::TaskValue;
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LawError {
-    /// The transition gain `μ` must be finite and strictly positive (s⁻¹).
-    #[error("transition gain μ = {mu} must be finite and > 0")]
+    /// The transition gain `μ` must lie in [`TRANSITION_GAIN_PER_S`] (s⁻¹): a slower transition than 1000 s, or a
+    /// faster one than a microsecond, is a unit error, and `1/μ` sets the controller's prediction horizon.
+    #[error("transition gain μ = {mu} must be finite, within [1e-3, 1e6] s⁻¹")]
     InvalidTransitionGain {
         /// The gain given.
         mu: f64,
     },
-    /// The avoidance gain `κ` must be finite and non-negative (s⁻¹).
-    #[error("avoidance gain κ = {kappa} must be finite and ≥ 0")]
+    /// The avoidance gain `κ` must lie in [`GAIN_PER_S`] (s⁻¹).
+    #[error("avoidance gain κ = {kappa} must be finite, within [0, 1e6] s⁻¹")]
     InvalidAvoidanceGain {
         /// The gain given.
         kappa: f64,
@@ -66,6 +68,15 @@ pub enum LawError {
         time: f64,
         /// The time of the last stack change.
         switch_time: f64,
+    },
+    /// The time does not increase strictly from the last step: the law's clock (and the transition's decay) would run
+    /// backwards or stand still.
+    #[error("time t = {time} s is not after the last step's time {previous} s")]
+    TimeNotIncreasing {
+        /// The time given (s).
+        time: f64,
+        /// The time of the last step (s).
+        previous: f64,
     },
     /// The joint configuration holds a NaN or an infinity.
     #[error("joint {joint} = {value} is not finite")]
@@ -243,12 +254,12 @@ impl ControlLaw {
         avoidance_gain: f64,
     ) -> Result<Self, LawError> {
         stack.validate()?;
-        if !(transition_gain.is_finite() && transition_gain > 0.0) {
+        if !TRANSITION_GAIN_PER_S.contains(transition_gain) {
             return Err(LawError::InvalidTransitionGain {
                 mu: transition_gain,
             });
         }
-        if !(avoidance_gain.is_finite() && avoidance_gain >= 0.0) {
+        if !GAIN_PER_S.contains(avoidance_gain) {
             return Err(LawError::InvalidAvoidanceGain {
                 kappa: avoidance_gain,
             });
@@ -423,7 +434,8 @@ impl<const N: usize> ControlWorkspace<N> {
 /// `order` (highest priority first) and an optional avoidance `cost`.
 ///
 /// # Errors
-/// Non-finite `q` or time, a time before the last change `τ` (a fresh workspace has `τ = 0`), stack or cost failures,
+/// Non-finite `q` or time, a time before the last change `τ` (a fresh workspace has `τ = 0`) or not strictly after the
+/// last step's ([`LawError::TimeNotIncreasing`]; a step that failed does not count), stack or cost failures,
 /// a non-finite result. On error the workspace keeps its transition and previous output (the next change still starts
 /// from the last velocity actually returned).
 #[allow(clippy::too_many_arguments)]
@@ -444,6 +456,10 @@ pub fn control_step<'w, const N: usize>(
     if !time.is_finite() || time < switch_time {
         return Err(LawError::InvalidTime { time, switch_time });
     }
+    let previous = workspace.transition.last_step_time();
+    if time <= previous {
+        return Err(LawError::TimeNotIncreasing { time, previous });
+    }
     let solution = solve_stack(&law.stack, &mut workspace.stack, tasks, order)?;
     let mut gradient = JointVector::zeros();
     let cost_value = match cost {
@@ -461,9 +477,13 @@ pub fn control_step<'w, const N: usize>(
     }
     let mut velocity = JointVector::zeros();
     let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
-    if !all_finite(&velocity) || !cost_value.is_finite() {
+    // Finite norms (hence finite entries): entries whose squares overflow are no velocity to send, and the
+    // controller reads ‖q̇_n‖.
+    let stack_norm = solution.velocity().norm();
+    if !(velocity.norm().is_finite() && stack_norm.is_finite() && cost_value.is_finite()) {
         return Err(LawError::NonFiniteVelocity);
     }
+    transition.stepped_at(time);
     workspace.transition = transition;
     let output = &mut workspace.output;
     output.velocity = velocity;

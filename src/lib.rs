@@ -4,11 +4,14 @@
 #![cfg_attr(docsrs, feature(doc_cfg))]
 
 pub mod avoidance;
+pub mod bounds;
 pub mod camera;
 pub mod continuity;
 pub mod controller;
 pub mod depth;
 pub mod feature;
+#[doc(hidden)]
+pub mod fuzz;
 pub mod law;
 pub mod linalg;
 pub mod math;

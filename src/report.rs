@@ -10,7 +10,7 @@
 //!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback", "task": str,
 //!               "law_jump": float, "jump": float, "max_step_after": float}],
 //!   "max_velocity_jump": float, "max_velocity_step": float, "max_acceleration": float,
-//!   "final_error_norm": float, "min_normalized_margin": float}]}
+//!   "final_error_norm": float|null, "min_normalized_margin": float}]}
 //! ```
 //!
 //! Continuity (D14): `law_jump` is the jump `‖u(τ) − q̇(τ⁻)‖` the law alone would make at a change, `jump` the step of
@@ -26,6 +26,47 @@ use crate::scenario::{RunKind, Scenario, ScenarioError};
 use crate::sim::{Outcome, Run};
 use serde::Serialize;
 use std::path::Path;
+
+/// An error and its causes, for people: the error's `Display`, then `: cause` for every source whose message the text
+/// does not already hold (a wrapper written `"…: {0}"` repeats its source). Never the `Debug` form, which can hold a
+/// whole input file.
+///
+/// ```
+/// use servostack::report::ErrorChain;
+/// let error = servostack::scenario::Scenario::from_toml_str("name = 3", None).unwrap_err();
+/// let text = ErrorChain(&error).to_string();
+/// assert!(text.starts_with("scenario syntax: ") && text.contains("name"));
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct ErrorChain<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl std::fmt::Display for ErrorChain<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut text = self.0.to_string();
+        let mut source = self.0.source();
+        while let Some(cause) = source {
+            let message = cause.to_string();
+            if !text.contains(&message) {
+                text.push_str(": ");
+                text.push_str(&message);
+            }
+            source = cause.source();
+        }
+        f.write_str(&text)
+    }
+}
+
+/// The exit code of a program's `main` (the examples'): success, or `error: ` and the [`ErrorChain`] on stderr and
+/// failure.
+pub fn exit_code(result: Result<(), Box<dyn std::error::Error>>) -> std::process::ExitCode {
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {}", ErrorChain(&*error));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
 
 /// Errors while writing a report.
 #[non_exhaustive]
@@ -111,14 +152,15 @@ impl std::fmt::Display for Summary {
                 .collect();
             writeln!(
                 f,
-                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.1e} {:>10.2e} {:>7.3}  {}",
+                "{:<17} {:<15} {:>6} {:>5} {:>10.1e} {:>10.1e} {:>10} {:>7.3}  {}",
                 run.name,
                 run.outcome,
                 run.iterations,
                 run.joint.map_or("-".into(), |j| j.to_string()),
                 run.max_velocity_jump,
                 run.max_velocity_step,
-                run.final_error_norm,
+                run.final_error_norm
+                    .map_or("-".into(), |e| format!("{e:.2e}")),
                 run.min_normalized_margin,
                 events.join(", ")
             )?;
@@ -202,8 +244,8 @@ pub struct RunSummary {
     pub max_velocity_step: f64,
     /// `max_velocity_step / Δt` (per s²).
     pub max_acceleration: f64,
-    /// `‖e‖` over all tasks at the end.
-    pub final_error_norm: f64,
+    /// `‖e‖` over all tasks at the end; `null` for a run that ended before its first iteration (no image to measure).
+    pub final_error_norm: Option<f64>,
     /// The smallest distance to a joint limit over time and joints, as a fraction of the range.
     pub min_normalized_margin: f64,
     /// The point lost, for a `feature_lost` outcome (extra field).

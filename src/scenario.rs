@@ -38,6 +38,7 @@
 //! ```
 
 use crate::avoidance::{Geometry, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
+use crate::bounds::{ANGLE_RAD, LENGTH_M};
 use crate::camera::ImagePoint;
 use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
 use crate::controller::{ControllerParameters, RemovalCriterion};
@@ -49,7 +50,9 @@ use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
 use crate::robot::{builtin, RobotError, SerialChain};
-use crate::sim::{simulate, Drive, Run, Scene, Sensing, SimError, SimulationParameters};
+use crate::sim::{
+    simulate_with, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
+};
 use crate::stack::StackParameters;
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
@@ -57,6 +60,9 @@ use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask, Visu
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+mod text_bounds;
+pub use text_bounds::{MAX_SCENARIO_BYTES, MAX_SCENARIO_DEPTH};
 
 /// Errors of scenario files. Each names the field at fault.
 #[non_exhaustive]
@@ -69,6 +75,25 @@ pub enum ScenarioError {
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
+    },
+    /// The scenario text is larger than [`MAX_SCENARIO_BYTES`] (checked before parsing, [D17](crate::theory#d17)).
+    #[error("scenario of {bytes} bytes is larger than the limit of {limit} bytes")]
+    TooLarge {
+        /// The size of the text or file (bytes).
+        bytes: u64,
+        /// [`MAX_SCENARIO_BYTES`].
+        limit: usize,
+    },
+    /// The scenario nests arrays or inline tables deeper than [`MAX_SCENARIO_DEPTH`] (checked before parsing: the
+    /// parser would overflow the stack, [D17](crate::theory#d17)).
+    #[error("scenario nests arrays or tables {depth} deep at line {line}: the limit is {limit}")]
+    TooDeep {
+        /// The depth reached when the limit was passed.
+        depth: usize,
+        /// [`MAX_SCENARIO_DEPTH`].
+        limit: usize,
+        /// The line (1-based) where it was passed.
+        line: usize,
     },
     /// The file is not valid TOML for a scenario (missing or unknown field, wrong type); the message names the field
     /// and its line.
@@ -134,17 +159,30 @@ impl PoseSpec {
     /// The rigid transform; `field` names the pose in errors.
     ///
     /// # Errors
-    /// [`ScenarioError::Invalid`] for a non-finite value.
+    /// [`ScenarioError::Invalid`] for a translation beyond [`LENGTH_M`] or an angle beyond [`ANGLE_RAD`] (both
+    /// naming the value).
     pub fn to_isometry(self, field: &str) -> Result<Isometry3<f64>, ScenarioError> {
-        if !self
-            .translation_m
-            .iter()
-            .chain(&self.rpy_deg)
-            .all(|v| v.is_finite())
-        {
-            return Err(invalid(field, "non-finite value"));
-        }
         let [roll, pitch, yaw] = self.rpy_deg.map(f64::to_radians);
+        // (field, range, values checked, values written): the angles are checked in radians.
+        for (part, range, values, written) in [
+            (
+                "translation_m",
+                LENGTH_M,
+                self.translation_m,
+                self.translation_m,
+            ),
+            ("rpy_deg", ANGLE_RAD, [roll, pitch, yaw], self.rpy_deg),
+        ] {
+            if let Some(i) = values.iter().position(|&v| !range.contains(v)) {
+                return Err(invalid(
+                    &format!("{field}.{part}"),
+                    format!(
+                        "value {i} = {:e} is out of range: {}",
+                        written[i], range.text
+                    ),
+                ));
+            }
+        }
         let [x, y, z] = self.translation_m;
         Ok(Isometry3::from_parts(
             Translation3::new(x, y, z),
@@ -426,8 +464,10 @@ impl Scenario {
     /// Parses a scenario; relative paths are resolved against `base_dir` (or the working directory).
     ///
     /// # Errors
-    /// [`ScenarioError::Syntax`] naming the field and line.
+    /// [`ScenarioError::TooLarge`], [`ScenarioError::TooDeep`] for text beyond the bounds checked before parsing
+    /// ([D17](crate::theory#d17)); [`ScenarioError::Syntax`] naming the field and line.
     pub fn from_toml_str(text: &str, base_dir: Option<&Path>) -> Result<Self, ScenarioError> {
+        text_bounds::check_scenario_text(text)?;
         let mut scenario: Self = toml::from_str(text)?;
         scenario.base_dir = base_dir.map(Path::to_path_buf);
         Ok(scenario)
@@ -436,12 +476,10 @@ impl Scenario {
     /// Reads and parses a scenario file.
     ///
     /// # Errors
-    /// [`ScenarioError::Io`], [`ScenarioError::Syntax`].
+    /// [`ScenarioError::Io`], [`ScenarioError::TooLarge`] (the file is not read), then those of
+    /// [`Scenario::from_toml_str`].
     pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = text_bounds::read_scenario_file(path)?;
         Self::from_toml_str(&text, path.parent())
     }
 
@@ -533,13 +571,7 @@ impl Scenario {
     ) -> Result<ObstacleCost<N>, ScenarioError> {
         let urdf = match &self.robot {
             RobotSpec::Builtin { builtin, .. } => builtin::urdf_by_name(builtin)?.to_owned(),
-            RobotSpec::Urdf { urdf, .. } => {
-                let path = self.resolve(urdf);
-                std::fs::read_to_string(&path).map_err(|e| RobotError::File {
-                    path: path.display().to_string(),
-                    message: e.to_string(),
-                })?
-            }
+            RobotSpec::Urdf { urdf, .. } => crate::robot::read_urdf_file(&self.resolve(urdf))?,
         };
         let links = LinkColliders::from_urdf_str(&urdf, &chain)
             .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
@@ -653,6 +685,23 @@ impl Scenario {
         experiment: &Experiment<N>,
         kind: RunKind,
     ) -> Result<Run<N>, ScenarioError> {
+        let mut records = Vec::new();
+        let mut run = self.run_experiment_with(experiment, kind, &mut records)?;
+        run.records = records;
+        Ok(run)
+    }
+
+    /// As [`Scenario::run_experiment`], with the records given to `log` ([`simulate_with`]): a run of any length in
+    /// bounded memory with [`crate::sim::SummaryOnly`], [`crate::sim::Decimated`] or [`crate::sim::JsonLines`].
+    ///
+    /// # Errors
+    /// As [`Scenario::run`].
+    pub fn run_experiment_with<const N: usize>(
+        &self,
+        experiment: &Experiment<N>,
+        kind: RunKind,
+        log: &mut dyn RunLog<N>,
+    ) -> Result<Run<N>, ScenarioError> {
         let desired_view = experiment
             .scene
             .view_from(&experiment.desired_camera_from_target)?;
@@ -732,12 +781,13 @@ impl Scenario {
             },
             sensing: sensing.as_ref(),
         };
-        Ok(simulate(
+        Ok(simulate_with(
             &experiment.scene,
             &tasks,
             drive,
             &experiment.start,
             &self.simulation,
+            log,
         )?)
     }
 }

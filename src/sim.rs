@@ -19,10 +19,17 @@
 //! when the scene has them, the obstacle cost ([`Scene::with_obstacles`]) and the visibility cost
 //! ([`Scene::with_visibility_margin`]).
 //!
-//! The run log ([`Run`]) keeps, per iteration, `q`, `q̇`, each task's error norm, the stack, the cost and its
-//! prediction, the criteria, and the image points; and the controller's event log.
+//! Each iteration makes a [`Record`]: `q`, `q̇`, each task's error norm, the stack, the cost and its prediction, the
+//! criteria, and the image points. The records go to a [`RunLog`] the caller chooses, so that a run of any length uses
+//! bounded memory: every record (`Vec<Record<N>>`, what [`simulate`] keeps for the figures), an evenly spaced subset
+//! of bounded size ([`Decimated`]), none ([`SummaryOnly`]) or a stream of JSON lines to a file ([`JsonLines`]). The
+//! [`Run`] that [`simulate_with`] returns holds the outcome, the controller's event log (bounded: each task is pushed
+//! once and removed at most `max_removals` times before the fallback of D13) and the summary of the run, accumulated
+//! iteration by iteration and exact whatever the log kept: iterations, the last record (final errors, stack),
+//! largest velocity step, continuity at every stack change, smallest joint-limit margin and obstacle distance.
 
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
+use crate::bounds::PERIOD_S;
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
@@ -93,6 +100,14 @@ pub enum SimError {
     /// The measurement model or the depth source has invalid parameters.
     #[error(transparent)]
     Measurement(#[from] MeasurementError),
+    /// The run log could not keep a record (an I/O error of a [`JsonLines`] log).
+    #[error("run log, iteration {iteration}: {message}")]
+    Log {
+        /// The iteration whose record was refused.
+        iteration: usize,
+        /// The log's message.
+        message: String,
+    },
 }
 
 /// The world: a robot with its camera, the camera's intrinsics, the target and where it stands.
@@ -268,7 +283,7 @@ impl<const N: usize> Scene<N> {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimulationParameters {
-    /// The control period `Δt` (s).
+    /// The control period `Δt` (s), within [`PERIOD_S`].
     pub period: f64,
     /// The iteration budget.
     pub max_iterations: usize,
@@ -311,8 +326,8 @@ impl SimulationParameters {
                 expected,
             })
         };
-        if !(self.period.is_finite() && self.period > 0.0) {
-            return invalid("period", self.period, "finite and > 0");
+        if !PERIOD_S.contains(self.period) {
+            return invalid("period", self.period, PERIOD_S.text);
         }
         if !(self.convergence_error.is_finite() && self.convergence_error > 0.0) {
             return invalid(
@@ -412,7 +427,7 @@ impl Outcome {
 }
 
 /// One iteration of the run log.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Record<const N: usize> {
     /// The iteration.
     pub iteration: usize,
@@ -459,7 +474,192 @@ pub struct EventContinuity {
     pub max_step_after: f64,
 }
 
-/// A finished run: its outcome, the run log and the event log.
+/// Where the records of a run go, one per iteration, as they are made (observers, not an unbounded
+/// log): the caller chooses how much of a run it keeps.
+///
+/// `Vec<Record<N>>` keeps every record (memory grows with the run: for figures of runs of bounded length),
+/// [`Decimated`] an evenly spaced subset of bounded size, [`SummaryOnly`] nothing, [`JsonLines`] streams every record
+/// to a writer. The [`Run`] returned by [`simulate_with`] has the summary of the run whatever the log keeps.
+pub trait RunLog<const N: usize> {
+    /// Receives the record of one iteration, in order.
+    ///
+    /// # Errors
+    /// A log that cannot keep the record (an I/O error) returns its message; the run stops with [`SimError::Log`].
+    fn record(&mut self, record: &Record<N>) -> Result<(), String>;
+}
+
+/// Every record: memory grows with the run (about 1 KB per iteration with four tasks).
+impl<const N: usize> RunLog<N> for Vec<Record<N>> {
+    fn record(&mut self, record: &Record<N>) -> Result<(), String> {
+        self.push(record.clone());
+        Ok(())
+    }
+}
+
+/// No record: the [`Run`]'s summary only, constant memory.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SummaryOnly;
+
+impl<const N: usize> RunLog<N> for SummaryOnly {
+    fn record(&mut self, _: &Record<N>) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// At most `capacity` records, evenly spaced: the records of the iterations that are multiples of a stride, the
+/// stride starting at 1 and doubling (every other record kept dropped) whenever the log is full. Memory is bounded by
+/// `capacity` records for any run length; a run of `n` iterations keeps between `capacity/2` and `capacity` of them
+/// (all of them when `n ≤ capacity`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decimated<const N: usize> {
+    capacity: usize,
+    stride: usize,
+    records: Vec<Record<N>>,
+}
+
+impl<const N: usize> Decimated<N> {
+    /// A log keeping at most `capacity` records (at least 2: the stride doubles by halving a full log).
+    pub fn new(capacity: usize) -> Self {
+        let capacity = capacity.max(2);
+        Self {
+            capacity,
+            stride: 1,
+            records: Vec::with_capacity(capacity),
+        }
+    }
+
+    /// The records kept, in iteration order.
+    pub fn records(&self) -> &[Record<N>] {
+        &self.records
+    }
+
+    /// The current stride: the records kept are those of the iterations that are multiples of it.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// The records kept.
+    pub fn into_records(self) -> Vec<Record<N>> {
+        self.records
+    }
+}
+
+impl<const N: usize> RunLog<N> for Decimated<N> {
+    fn record(&mut self, record: &Record<N>) -> Result<(), String> {
+        if !record.iteration.is_multiple_of(self.stride) {
+            return Ok(());
+        }
+        if self.records.len() == self.capacity {
+            self.stride *= 2;
+            let stride = self.stride;
+            self.records.retain(|r| r.iteration.is_multiple_of(stride));
+            if !record.iteration.is_multiple_of(stride) {
+                return Ok(());
+            }
+        }
+        self.records.push(record.clone());
+        Ok(())
+    }
+}
+
+/// Every record streamed to a writer as one JSON object per line (the fields of [`Record`]; `q`, `velocity` as
+/// arrays). Memory is that of the writer's buffer: give it a `BufWriter` around a file.
+#[derive(Debug)]
+pub struct JsonLines<W: std::io::Write> {
+    writer: W,
+}
+
+impl<W: std::io::Write> JsonLines<W> {
+    /// A log writing to `writer`.
+    pub fn new(writer: W) -> Self {
+        Self { writer }
+    }
+
+    /// The writer, flushed.
+    ///
+    /// # Errors
+    /// The writer's flush error.
+    pub fn into_inner(mut self) -> std::io::Result<W> {
+        self.writer.flush()?;
+        Ok(self.writer)
+    }
+}
+
+impl<const N: usize, W: std::io::Write> RunLog<N> for JsonLines<W> {
+    fn record(&mut self, record: &Record<N>) -> Result<(), String> {
+        serde_json::to_writer(&mut self.writer, record).map_err(|e| e.to_string())?;
+        self.writer.write_all(b"\n").map_err(|e| e.to_string())
+    }
+}
+
+/// The summary of a run, accumulated record by record (exact without the records).
+#[derive(Debug, Clone, PartialEq)]
+struct Totals<const N: usize> {
+    iterations: usize,
+    last: Option<Record<N>>,
+    /// The last velocity sent (zero before the first: the run starts at rest).
+    last_sent: JointVector<N>,
+    max_velocity_step: f64,
+    min_normalized_margin: f64,
+    min_obstacle_distance: Option<f64>,
+    continuity: Vec<EventContinuity>,
+}
+
+impl<const N: usize> Totals<N> {
+    /// Before the first iteration, at `start`.
+    fn new(limits: &JointLimits<N>, start: &JointVector<N>) -> Self {
+        Self {
+            iterations: 0,
+            last: None,
+            last_sent: JointVector::zeros(),
+            max_velocity_step: 0.0,
+            min_normalized_margin: limits.normalized_margin(start),
+            min_obstacle_distance: None,
+            continuity: Vec::new(),
+        }
+    }
+
+    /// Adds the record of the next iteration, with the controller's event log after it.
+    fn add(&mut self, record: Record<N>, limits: &JointLimits<N>, events: &[StackEvent]) {
+        self.iterations = record.iteration + 1;
+        self.min_normalized_margin = self
+            .min_normalized_margin
+            .min(limits.normalized_margin(&record.q));
+        self.min_obstacle_distance = match (self.min_obstacle_distance, record.obstacle_distance) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        if record.sent {
+            // D14: the step at this iteration is the jump of the changes made at it, and otherwise belongs to the window
+            // after the last change.
+            let step = (record.velocity - self.last_sent).norm();
+            self.last_sent = record.velocity;
+            self.max_velocity_step = self.max_velocity_step.max(step);
+            let known = self.continuity.len();
+            let changes = events
+                .get(known..)
+                .unwrap_or_default()
+                .iter()
+                .take_while(|e| e.iteration == record.iteration);
+            self.continuity.extend(changes.map(|e| EventContinuity {
+                iteration: e.iteration,
+                kind: e.kind,
+                task: e.task,
+                law_jump: e.law_jump,
+                jump: step,
+                max_step_after: 0.0,
+            }));
+            if self.continuity.len() == known {
+                if let Some(last) = self.continuity.last_mut() {
+                    last.max_step_after = last.max_step_after.max(step);
+                }
+            }
+        }
+        self.last = Some(record);
+    }
+}
+
+/// A finished run: its outcome, the records its log kept, the event log and the run's summary.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Run<const N: usize> {
     /// How it ended.
@@ -468,92 +668,73 @@ pub struct Run<const N: usize> {
     pub period: f64,
     /// The names of the tasks, by index.
     pub task_names: Vec<String>,
-    /// One record per iteration.
+    /// One record per iteration from [`simulate`]; empty from [`simulate_with`] (its [`RunLog`] has the records).
     pub records: Vec<Record<N>>,
     /// The controller's event log.
     pub events: Vec<StackEvent>,
     /// The joint limits, for normalised plots and margins.
     pub limits: JointLimits<N>,
+    totals: Totals<N>,
 }
 
 impl<const N: usize> Run<N> {
-    /// The number of iterations performed (the index of the iteration at which the run ended, plus one).
+    /// The number of iterations performed (the index of the iteration at which the run ended, plus one; 0 when it
+    /// ended before its first record, e.g. a target lost at the start).
     pub fn iterations(&self) -> usize {
-        self.records.len()
+        self.totals.iterations
     }
 
-    /// The velocity sent at each iteration that sent one, from rest: `q̇_{−1} = 0`, then `q̇_0, q̇_1, …`.
-    fn sent_velocities(&self) -> impl Iterator<Item = JointVector<N>> + '_ {
-        std::iter::once(JointVector::zeros())
-            .chain(self.records.iter().filter(|r| r.sent).map(|r| r.velocity))
+    /// The record of the last iteration, `None` when the run ended before its first record.
+    pub fn last_record(&self) -> Option<&Record<N>> {
+        self.totals.last.as_ref()
     }
 
-    /// `‖q̇_k − q̇_{k−1}‖` for every iteration `k` that sent a velocity (D14; `q̇_{−1} = 0`: the run starts at rest).
+    /// `‖q̇_k − q̇_{k−1}‖` for every iteration `k` of [`Run::records`] that sent a velocity (D14; `q̇_{−1} = 0`: the
+    /// run starts at rest). Needs every record ([`simulate`]); the summaries below do not.
     pub fn velocity_steps(&self) -> Vec<f64> {
-        self.sent_velocities()
-            .zip(self.sent_velocities().skip(1))
-            .map(|(before, after)| (after - before).norm())
+        let sent = || {
+            std::iter::once(JointVector::zeros())
+                .chain(self.records.iter().filter(|r| r.sent).map(|r| r.velocity))
+        };
+        sent()
+            .zip(sent().skip(1))
+            .map(|(before, after): (JointVector<N>, _)| (after - before).norm())
             .collect()
     }
 
-    /// The largest step-to-step change of the velocity sent over the run, `max_k ‖q̇_k − q̇_{k−1}‖` (D14); divide by
-    /// [`Run::period`] for the largest acceleration.
+    /// The largest step-to-step change of the velocity sent over the run, `max_k ‖q̇_k − q̇_{k−1}‖` (D14; 0 when
+    /// nothing was sent); divide by [`Run::period`] for the largest acceleration.
     pub fn max_velocity_step(&self) -> f64 {
-        self.velocity_steps().into_iter().fold(0.0, f64::max)
+        self.totals.max_velocity_step
     }
 
     /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the stack changes: the velocity sent at the iteration of a change against
     /// the one sent at the iteration before (zero before the first iteration: the run starts at rest). D1 makes it
     /// zero up to rounding; [`Run::event_continuity`] says what happens after.
     pub fn max_velocity_jump(&self) -> f64 {
-        self.event_continuity()
+        self.totals
+            .continuity
             .iter()
             .map(|c| c.jump)
             .fold(0.0, f64::max)
     }
 
-    /// Continuity at and after every stack change (D14): the jump at the change, the largest velocity step in the
-    /// window from the change to the next one, and the jump the law alone would have made.
+    /// Continuity at and after every stack change that sent a velocity (D14): the jump at the change, the largest
+    /// velocity step in the window from the change to the next one, and the jump the law alone would have made.
     pub fn event_continuity(&self) -> Vec<EventContinuity> {
-        let steps = self.velocity_steps();
-        self.events
-            .iter()
-            .enumerate()
-            .filter(|(_, e)| e.iteration < steps.len())
-            .map(|(i, e)| {
-                let end = self
-                    .events
-                    .get(i + 1)
-                    .map_or(steps.len(), |next| next.iteration)
-                    .clamp(e.iteration + 1, steps.len());
-                EventContinuity {
-                    iteration: e.iteration,
-                    kind: e.kind,
-                    task: e.task,
-                    law_jump: e.law_jump,
-                    jump: steps[e.iteration],
-                    max_step_after: steps[e.iteration + 1..end]
-                        .iter()
-                        .copied()
-                        .fold(0.0, f64::max),
-                }
-            })
-            .collect()
+        self.totals.continuity.clone()
     }
 
-    /// `‖[e_1; …; e_n]‖` at the last iteration.
-    pub fn final_error_norm(&self) -> f64 {
-        self.records.last().map_or(f64::NAN, |r| {
-            r.task_errors.iter().map(|e| e * e).sum::<f64>().sqrt()
-        })
+    /// `‖[e_1; …; e_n]‖` at the last iteration; `None` when the run ended before its first record.
+    pub fn final_error_norm(&self) -> Option<f64> {
+        self.last_record()
+            .map(|r| r.task_errors.iter().map(|e| e * e).sum::<f64>().sqrt())
     }
 
-    /// The smallest distance to a limit over time and joints, as a fraction of the joint's range.
+    /// The smallest distance to a limit over time (the start and every iteration) and joints, as a fraction of the
+    /// joint's range.
     pub fn min_normalized_margin(&self) -> f64 {
-        self.records
-            .iter()
-            .map(|r| self.limits.normalized_margin(&r.q))
-            .fold(f64::INFINITY, f64::min)
+        self.totals.min_normalized_margin
     }
 
     /// The smallest link–obstacle signed distance over the run (m; negative when penetrating), including the
@@ -563,17 +744,16 @@ impl<const N: usize> Run<N> {
             Outcome::Collision { distance, .. } => Some(*distance),
             _ => None,
         };
-        self.records
-            .iter()
-            .filter_map(|r| r.obstacle_distance)
+        self.totals
+            .min_obstacle_distance
+            .into_iter()
             .chain(at_collision)
             .reduce(f64::min)
     }
 
     /// The names of the tasks stacked at the end.
     pub fn stacked_at_end(&self) -> Vec<&str> {
-        self.records
-            .last()
+        self.last_record()
             .map(|r| {
                 r.stacked
                     .iter()
@@ -855,7 +1035,8 @@ pub struct Drive<'a> {
     pub sensing: Option<&'a Sensing<'a>>,
 }
 
-/// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget.
+/// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget, and keeps every record
+/// in [`Run::records`] (memory grows with the run: for runs of any length, see [`simulate_with`]).
 ///
 /// # Errors
 /// Invalid parameters, a start outside the limits, failures of the models (not outcomes).
@@ -865,6 +1046,26 @@ pub fn simulate<const N: usize>(
     drive: Drive<'_>,
     start: &JointVector<N>,
     parameters: &SimulationParameters,
+) -> Result<Run<N>, SimError> {
+    let mut records = Vec::new();
+    let mut run = simulate_with(scene, tasks, drive, start, parameters, &mut records)?;
+    run.records = records;
+    Ok(run)
+}
+
+/// As [`simulate`], with the records given to `log` as they are made ([`Run::records`] stays empty): with
+/// [`SummaryOnly`], [`Decimated`] or [`JsonLines`], a run of any length uses bounded memory, and the [`Run`]'s summary
+/// (outcome, iterations, last record, velocity steps, continuity, margins) is the same as with every record kept.
+///
+/// # Errors
+/// As [`simulate`]; [`SimError::Log`] when the log refuses a record.
+pub fn simulate_with<const N: usize>(
+    scene: &Scene<N>,
+    tasks: &[VisualTask],
+    drive: Drive<'_>,
+    start: &JointVector<N>,
+    parameters: &SimulationParameters,
+    log: &mut dyn RunLog<N>,
 ) -> Result<Run<N>, SimError> {
     parameters.validate()?;
     if let Some(joint) = scene.limits.violated_joint(start) {
@@ -929,7 +1130,15 @@ pub fn simulate<const N: usize>(
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
     let mut closest = closest_obstacle(scene, &q)?;
-    let mut records = Vec::with_capacity(parameters.max_iterations.min(100_000));
+    let mut totals = Totals::new(&scene.limits, start);
+    let mut keep = |record: Record<N>, events: &[StackEvent]| {
+        log.record(&record).map_err(|message| SimError::Log {
+            iteration: record.iteration,
+            message,
+        })?;
+        totals.add(record, &scene.limits, events);
+        Ok::<_, SimError>(())
+    };
     let mut outcome = None;
     for iteration in 0..parameters.max_iterations {
         let time = iteration as f64 * parameters.period;
@@ -1014,7 +1223,7 @@ pub fn simulate<const N: usize>(
                 .iter()
                 .all(|&e| e < parameters.convergence_error)
         {
-            records.push(record);
+            keep(record, controller.events())?;
             outcome = Some(Outcome::Converged);
             break;
         }
@@ -1025,7 +1234,7 @@ pub fn simulate<const N: usize>(
                 // feature is lost, as when the camera itself gets there.
                 Err(error) => match point_behind_camera(&error) {
                     Some(point) => {
-                        records.push(record);
+                        keep(record, controller.events())?;
                         outcome = Some(Outcome::FeatureLost { point });
                         break;
                     }
@@ -1052,7 +1261,7 @@ pub fn simulate<const N: usize>(
         closest = closest_obstacle(scene, &q)?;
         let contact = closest.clone().filter(|(_, _, d)| *d <= 0.0);
         let stacked = record.stacked.clone();
-        records.push(record);
+        keep(record, controller.events())?;
         if let Some(joint) = hit {
             outcome = Some(Outcome::JointLimit { joint, stacked });
             break;
@@ -1073,14 +1282,15 @@ pub fn simulate<const N: usize>(
         .collect();
     let outcome = match outcome {
         Some(outcome) => outcome,
-        None => budget_outcome(&controller, &task_names, records.last()),
+        None => budget_outcome(&controller, &task_names, totals.last.as_ref()),
     };
     Ok(Run {
         outcome,
         period: parameters.period,
         task_names,
-        records,
+        records: Vec::new(),
         events: controller.events().to_vec(),
         limits: scene.limits.clone(),
+        totals,
     })
 }

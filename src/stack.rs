@@ -62,6 +62,16 @@ pub enum StackError {
         /// The number of tasks in the list.
         available: usize,
     },
+    /// The stack order names a task twice: a task is at most one level of a stack.
+    #[error("stack levels {first_level} and {level} both name task {task}")]
+    DuplicateTask {
+        /// The task index.
+        task: usize,
+        /// The first level naming it (0 = highest priority).
+        first_level: usize,
+        /// The later level naming it again.
+        level: usize,
+    },
     /// The task does not fit the workspace (it has more rows, or the stack more levels, than it was sized for).
     #[error("workspace too small: {what} is {found}, capacity {capacity}")]
     CapacityExceeded {
@@ -224,7 +234,7 @@ impl<const N: usize> StackWorkspace<N> {
 /// workspace was sized for these tasks. An empty order gives `q̇_n = 0`, `P^A_n = I`.
 ///
 /// # Errors
-/// An unknown task index, a task or stack larger than the workspace, non-finite task data, invalid parameters, or a
+/// An unknown or repeated task index, a task or stack larger than the workspace, non-finite task data, invalid parameters, or a
 /// failed decomposition. After an error, the workspace's solution is unspecified (not returned to the caller).
 pub fn solve_stack<'w, const N: usize>(
     parameters: &StackParameters,
@@ -233,6 +243,22 @@ pub fn solve_stack<'w, const N: usize>(
     order: &[usize],
 ) -> Result<&'w StackSolution<N>, StackError> {
     parameters.validate()?;
+    for (level, &task) in order.iter().enumerate() {
+        if task >= tasks.len() {
+            return Err(StackError::UnknownTask {
+                level,
+                task,
+                available: tasks.len(),
+            });
+        }
+        if let Some(first_level) = order[..level].iter().position(|&t| t == task) {
+            return Err(StackError::DuplicateTask {
+                task,
+                first_level,
+                level,
+            });
+        }
+    }
     if order.len() > workspace.svds.len() {
         return Err(StackError::CapacityExceeded {
             what: "levels",

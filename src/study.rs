@@ -695,7 +695,7 @@ fn method_result<const N: usize>(
     for event in run.events_of(crate::controller::EventKind::Remove) {
         per_task[event.task] += 1;
     }
-    let q_end = run.records.last().map_or(experiment.start, |r| r.q);
+    let q_end = run.last_record().map_or(experiment.start, |r| r.q);
     let (camera_translation_error, camera_rotation_error_deg) = match experiment
         .scene
         .observe(&mut KinematicsWorkspace::new(), &q_end)

@@ -42,8 +42,8 @@ pub enum TaskError {
         /// The task's name.
         name: String,
     },
-    /// The gain must be finite and strictly positive (s⁻¹).
-    #[error("task `{name}`: gain λ = {gain} must be finite and > 0")]
+    /// The gain must be finite, strictly positive and within [`crate::bounds::GAIN_PER_S`] (s⁻¹).
+    #[error("task `{name}`: gain λ = {gain} must be > 0 and within [0, 1e6] s⁻¹")]
     InvalidGain {
         /// The task's name.
         name: String,
@@ -233,7 +233,7 @@ impl<const N: usize> TaskValue<N> {
 }
 
 fn validate_gain(name: &str, gain: f64) -> Result<(), TaskError> {
-    if gain.is_finite() && gain > 0.0 {
+    if gain > 0.0 && crate::bounds::GAIN_PER_S.contains(gain) {
         Ok(())
     } else {
         Err(TaskError::InvalidGain {

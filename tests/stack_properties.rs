@@ -251,8 +251,10 @@ fn continuity_at_every_change<const N: usize>(
             .find(|(at, _)| *at == step)
             .map(|&(_, push)| push);
         if let Some(push) = forced.or(random) {
-            if push && order.len() < tasks.len() {
-                order.push(order.len());
+            // Push a task not stacked yet (after a removal, `order.len()` may be one that is).
+            let next = (0..tasks.len()).find(|t| !order.contains(t));
+            if let (true, Some(next)) = (push, next) {
+                order.push(next);
                 change = StackChange::Changed;
             } else if !push && !order.is_empty() {
                 order.remove(step % order.len());

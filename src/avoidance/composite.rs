@@ -1,7 +1,7 @@
 //! A sum of costs: `h(q) = Σ_k h_k(q)`, `∇h = Σ_k ∇h_k` ([theory §4](crate::theory#s4): the projected gradient of the sum pushes away from
 //! every danger at once; a sum of C¹ potentials is C¹).
 
-use super::{Cost, CostError};
+use super::{checked_cost, Cost, CostError};
 use crate::math::JointVector;
 
 /// The sum of several costs (joint limits, obstacles, visibility, ...), built once. Terms may be owned
@@ -89,9 +89,11 @@ impl<'a, const N: usize> CompositeCost<'a, N> {
 impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
     /// `Σ_k h_k(q)`.
     fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
-        self.terms
+        let value = self
+            .terms
             .iter()
-            .try_fold(0.0, |sum, t| Ok(sum + t.value(q)?))
+            .try_fold(0.0, |sum, t| Ok::<_, CostError>(sum + t.value(q)?))?;
+        checked_cost::<N>(self.name(), value, None)
     }
 
     /// `Σ_k h_k(q)` and `Σ_k ∇h_k(q)`.
@@ -107,7 +109,7 @@ impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
             value += term.value_and_gradient(q, &mut term_gradient)?;
             *gradient += term_gradient;
         }
-        Ok(value)
+        checked_cost(self.name(), value, Some(gradient))
     }
 
     fn name(&self) -> &str {

@@ -12,7 +12,8 @@
 //! everywhere. Units: `δ_i` and `Δq_i` are in the joint's unit (m or rad), so `h` is in m or rad per joint term and `∇h`
 //! is dimensionless; the avoidance gain `κ` carries the unit 1/s.
 
-use super::{dead_band, Cost, CostError};
+use super::{checked_cost, dead_band, Cost, CostError};
+use crate::bounds::JOINT_POSITION;
 use crate::math::{first_non_finite, JointVector};
 
 /// Joint limits and the cost [\[M20\]](crate::theory#m20) that keeps a configuration away from them.
@@ -27,17 +28,18 @@ impl<const N: usize> JointLimits<N> {
     /// The activation ratio of the paper and of ViSP's 2005 Afma6 model ([theory §5](crate::theory#s5)).
     pub const DEFAULT_ACTIVATION_RATIO: f64 = 0.1;
 
-    /// Limits `lower < upper` (m or rad per joint) with activation ratio `rho ∈ (0, 1/2)`.
+    /// Limits `lower < upper` (m or rad per joint, within [`JOINT_POSITION`]) with activation ratio `rho ∈ (0, 1/2)`.
     ///
     /// # Errors
-    /// [`CostError::InvalidLimits`] for a non-finite or unordered pair, [`CostError::InvalidActivationRatio`].
+    /// [`CostError::InvalidLimits`] for a non-finite, out-of-range or unordered pair,
+    /// [`CostError::InvalidActivationRatio`].
     pub fn new(lower: JointVector<N>, upper: JointVector<N>, rho: f64) -> Result<Self, CostError> {
         if !(rho.is_finite() && rho > 0.0 && rho < 0.5) {
             return Err(CostError::InvalidActivationRatio { rho });
         }
         for joint in 0..N {
             let (lo, hi) = (lower[joint], upper[joint]);
-            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            if !(JOINT_POSITION.contains(lo) && JOINT_POSITION.contains(hi) && lo < hi) {
                 return Err(CostError::InvalidLimits {
                     joint,
                     lower: lo,
@@ -129,9 +131,10 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
         if let Some((joint, value)) = first_non_finite(q) {
             return Err(CostError::NonFiniteConfiguration { joint, value });
         }
-        Ok((0..N)
+        let value = (0..N)
             .map(|i| 0.5 * self.penetration(q, i).powi(2) / self.range(i))
-            .sum())
+            .sum();
+        checked_cost::<N>(self.name(), value, None)
     }
 
     /// [\[M20\]](crate::theory#m20) and [\[M21\]](crate::theory#m21).
@@ -149,7 +152,7 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
             gradient[i] = delta / self.range(i);
             value += 0.5 * delta * gradient[i];
         }
-        Ok(value)
+        checked_cost(self.name(), value, Some(gradient))
     }
 }
 

@@ -41,8 +41,8 @@ pub enum CostError {
         /// The ratio given.
         rho: f64,
     },
-    /// A joint's limits are not finite or not ordered (`lower < upper`).
-    #[error("joint {joint}: limits [{lower}, {upper}] must be finite with lower < upper")]
+    /// A joint's limits are not finite, beyond [`crate::bounds::JOINT_POSITION`] or not ordered (`lower < upper`).
+    #[error("joint {joint}: limits [{lower}, {upper}] must be finite, within ±1000 (m or rad), with lower < upper")]
     InvalidLimits {
         /// The joint index (0-based).
         joint: usize,
@@ -144,9 +144,42 @@ pub enum CostError {
         /// Its depth in the camera frame (m).
         depth: f64,
     },
+    /// The cost or its gradient overflowed at a finite configuration (a joint far beyond its range): an error, never
+    /// a NaN or infinite cost returned as a value.
+    #[error(
+        "cost {cost:?} is not finite at this configuration: value {value}, gradient {gradient:?}"
+    )]
+    NonFiniteCost {
+        /// The cost's name ([`Cost::name`]).
+        cost: String,
+        /// The value computed.
+        value: f64,
+        /// The gradient computed (empty for [`Cost::value`]).
+        gradient: Vec<f64>,
+    },
     /// The robot model failed (kinematics or URDF).
     #[error(transparent)]
     Robot(#[from] RobotError),
+}
+
+/// `value` when it and `gradient` are finite, else [`CostError::NonFiniteCost`] naming `cost`: the last check of a
+/// cost before it returns (cheap, and allocation-free unless it fails).
+pub(crate) fn checked_cost<const N: usize>(
+    cost: &str,
+    value: f64,
+    gradient: Option<&JointVector<N>>,
+) -> Result<f64, CostError> {
+    if value.is_finite() && gradient.is_none_or(crate::math::all_finite) {
+        Ok(value)
+    } else {
+        Err(CostError::NonFiniteCost {
+            cost: cost.to_owned(),
+            value,
+            gradient: gradient
+                .map(|g| g.iter().copied().collect())
+                .unwrap_or_default(),
+        })
+    }
 }
 
 /// A differentiable scalar cost `h(q)` on the joint space, minimised by the projected-gradient term ([\[M16\]](crate::theory#m16)).

@@ -22,7 +22,7 @@
 //! no shape penetrates an obstacle.
 
 use super::collision::{proximity, signed_distance, Collider, Geometry};
-use super::{Cost, CostError};
+use super::{checked_cost, Cost, CostError};
 use crate::math::{first_non_finite, JointVector};
 use crate::robot::{parse_urdf, ChainLink, KinematicState, KinematicsWorkspace, SerialChain};
 use nalgebra::{Isometry3, SMatrix};
@@ -400,7 +400,7 @@ impl<const N: usize> ObstacleCost<N> {
                 g.gemv_tr(delta / term.influence, &point_jacobian, &p.normal, 1.0);
             }
         }
-        Ok(value)
+        checked_cost(Cost::<N>::name(self), value, gradient.as_deref())
     }
 }
 

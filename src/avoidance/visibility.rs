@@ -20,7 +20,7 @@
 //! The cost computes the projection itself from `q` (kinematics on the stack, no allocation), so it can be evaluated
 //! at the controller's predicted configuration `q̂` ([D6](crate::theory#d6)).
 
-use super::{dead_band, Cost, CostError};
+use super::{checked_cost, dead_band, Cost, CostError};
 use crate::camera::{project_point, CameraIntrinsics, EyeInHand};
 use crate::feature::{point_interaction, InteractionRow};
 use crate::math::{all_finite, first_non_finite, JointVector};
@@ -86,7 +86,7 @@ impl<const N: usize> VisibilityCost<N> {
     fn evaluate(
         &self,
         q: &JointVector<N>,
-        gradient: Option<&mut JointVector<N>>,
+        mut gradient: Option<&mut JointVector<N>>,
     ) -> Result<f64, CostError> {
         if let Some((joint, value)) = first_non_finite(q) {
             return Err(CostError::NonFiniteConfiguration { joint, value });
@@ -118,11 +118,11 @@ impl<const N: usize> VisibilityCost<N> {
                 twist_gradient += lx * wx + ly * wy;
             }
         }
-        if let Some(g) = gradient {
+        if let Some(g) = gradient.as_deref_mut() {
             let camera_jacobian = self.camera.camera_jacobian(state.tip_jacobian());
             *g = (twist_gradient * camera_jacobian).transpose();
         }
-        Ok(value)
+        checked_cost(Cost::<N>::name(self), value, gradient.as_deref())
     }
 }
 

@@ -19,7 +19,7 @@ use nalgebra::{Isometry3, Point3};
 
 /// A point seen by the camera: normalised image coordinates `x = X/Z`, `y = Y/Z` (dimensionless) and its depth `Z`
 /// (m, along the optical axis, strictly positive for a visible point), all in the camera frame `c`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct ImagePoint {
     /// Normalised abscissa `X/Z`.
     pub x: f64,

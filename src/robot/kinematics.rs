@@ -1,7 +1,7 @@
 //! Forward kinematics and geometric Jacobians of a [`SerialChain`], written into a preallocated workspace.
 
 use super::{ChainLink, JointKind, RobotError, SerialChain};
-use crate::math::{JointVector, KinematicJacobian};
+use crate::math::{all_finite, JointVector, KinematicJacobian};
 use nalgebra::{Isometry3, Point3, SMatrix, Translation3, UnitQuaternion, Vector3};
 
 /// Everything one kinematic evaluation computes, for `N` joints, read through the reference
@@ -52,8 +52,9 @@ impl<const N: usize> SerialChain<N> {
     /// (see the [module docs](super) for the equations). Allocates nothing.
     ///
     /// # Errors
-    /// [`RobotError::NonFiniteJoint`] when an entry of `q` is NaN or infinite. Positions outside the joint limits are
-    /// accepted (the limits are the caller's business: see [`SerialChain::within_limits`]).
+    /// [`RobotError::NonFiniteJoint`] when an entry of `q` is NaN or infinite; [`RobotError::NonFiniteKinematics`]
+    /// when the pose or a Jacobian overflows (finite positions far beyond any joint's range). Positions outside the
+    /// joint limits are accepted (the limits are the caller's business: see [`SerialChain::within_limits`]).
     pub fn kinematics<'w>(
         &self,
         workspace: &'w mut KinematicsWorkspace<N>,
@@ -126,6 +127,20 @@ impl<const N: usize> SerialChain<N> {
             tip_column
                 .fixed_rows_mut::<3>(3)
                 .copy_from(&(tip_from_base * angular));
+        }
+        // Finite inputs can still overflow (a prismatic position near 1e308): nothing non-finite is returned as Ok.
+        let what = if !all_finite(&state.base_from_tip.translation.vector) {
+            Some("tip pose")
+        } else if !(all_finite(&state.base_jacobian) && all_finite(&state.tip_jacobian)) {
+            Some("Jacobian")
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(RobotError::NonFiniteKinematics {
+                what,
+                q: q.iter().copied().collect(),
+            });
         }
         Ok(&workspace.state)
     }

@@ -59,10 +59,14 @@
 pub mod builtin;
 mod kinematics;
 mod urdf;
+mod xml_bounds;
 
 pub use kinematics::{KinematicState, KinematicsWorkspace};
 pub(crate) use urdf::parse_urdf;
+pub(crate) use xml_bounds::read_urdf_file;
+pub use xml_bounds::{MAX_URDF_BYTES, MAX_URDF_DEPTH};
 
+use crate::bounds::JOINT_POSITION;
 use crate::camera::CameraError;
 use crate::math::JointVector;
 use nalgebra::{Isometry3, Quaternion, Unit, Vector3};
@@ -76,6 +80,25 @@ pub enum RobotError {
     Urdf {
         /// The parser's message.
         message: String,
+    },
+    /// The URDF text is larger than [`MAX_URDF_BYTES`] (checked before parsing, [D17](crate::theory#d17)).
+    #[error("URDF of {bytes} bytes is larger than the limit of {limit} bytes")]
+    UrdfTooLarge {
+        /// The size of the text or file (bytes).
+        bytes: u64,
+        /// [`MAX_URDF_BYTES`].
+        limit: usize,
+    },
+    /// The URDF nests elements deeper than [`MAX_URDF_DEPTH`] (checked before parsing: a recursive parser would
+    /// overflow the stack, [D17](crate::theory#d17)).
+    #[error("URDF nests elements {depth} deep at line {line}: the limit is {limit}")]
+    UrdfTooDeep {
+        /// The depth reached when the limit was passed.
+        depth: usize,
+        /// [`MAX_URDF_DEPTH`].
+        limit: usize,
+        /// The line (1-based) of the element that passed it.
+        line: usize,
     },
     /// A URDF file could not be read.
     #[error("cannot read URDF file {path}: {message}")]
@@ -150,7 +173,7 @@ pub enum RobotError {
         /// Upper limit (rad or m).
         upper: f64,
     },
-    /// A movable joint has a zero (or near-zero, norm below 1e−12) axis.
+    /// A movable joint has a zero axis (its largest component, in absolute value, below 1e−12).
     #[error("joint {joint:?} has a zero axis {axis:?}")]
     ZeroAxis {
         /// Joint name.
@@ -167,6 +190,27 @@ pub enum RobotError {
         field: &'static str,
         /// The values read.
         values: Vec<f64>,
+    },
+    /// A number of the URDF on the path (origin, limit) is finite but outside its physical range
+    /// ([`crate::bounds`], [D17](crate::theory#d17)).
+    #[error("joint {joint:?}: {field} = {value:e} is out of range: expected {expected}")]
+    OutOfRange {
+        /// Joint name.
+        joint: String,
+        /// Which field (`"origin xyz"`, `"origin rpy"`, `"limit"`).
+        field: &'static str,
+        /// The first value out of range.
+        value: f64,
+        /// The range.
+        expected: &'static str,
+    },
+    /// The kinematics produced a non-finite pose or Jacobian (a joint position so large that the products overflow).
+    #[error("kinematics at q = {q:?}: the {what} is not finite")]
+    NonFiniteKinematics {
+        /// `"tip pose"` or `"Jacobian"`.
+        what: &'static str,
+        /// The joint positions given (rad or m).
+        q: Vec<f64>,
     },
     /// A joint limit given to [`SerialChain::with_limits`] is NaN or infinite.
     #[error("joint {joint:?}: limits must be finite (lower = {lower}, upper = {upper})")]
@@ -385,7 +429,8 @@ impl<const N: usize> SerialChain<N> {
     /// ```
     ///
     /// # Errors
-    /// [`RobotError::NonFiniteLimits`] for a NaN or infinite limit, [`RobotError::InvalidLimits`] for
+    /// [`RobotError::NonFiniteLimits`] for a NaN or infinite limit, [`RobotError::OutOfRange`] for one beyond
+    /// [`crate::bounds::JOINT_POSITION`], [`RobotError::InvalidLimits`] for
     /// `lower ≥ upper`; both name the first joint at fault.
     pub fn with_limits(
         mut self,
@@ -399,6 +444,14 @@ impl<const N: usize> SerialChain<N> {
                     joint: joint.name.clone(),
                     lower: lo,
                     upper: hi,
+                });
+            }
+            if let Some(value) = [lo, hi].into_iter().find(|&v| !JOINT_POSITION.contains(v)) {
+                return Err(RobotError::OutOfRange {
+                    joint: joint.name.clone(),
+                    field: "limit",
+                    value,
+                    expected: JOINT_POSITION.text,
                 });
             }
             if lo >= hi {

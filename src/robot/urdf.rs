@@ -1,13 +1,14 @@
 //! Loading a [`SerialChain`] from URDF (urdf-rs): path search from tip to base, fixed-joint folding, validation.
 
 use super::{ChainLink, Joint, JointKind, RobotError, SerialChain};
+use crate::bounds::{PhysicalRange, ANGLE_RAD, LENGTH_M};
 use crate::math::JointVector;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Axes shorter than this are rejected as zero.
-const MIN_AXIS_NORM: f64 = 1e-12;
+/// Axes whose largest component (absolute value) is below this are rejected as zero.
+const MIN_AXIS_COMPONENT: f64 = 1e-12;
 
 impl<const N: usize> SerialChain<N> {
     /// Loads the chain from `base_link` to `tip_link` of a URDF document.
@@ -16,12 +17,13 @@ impl<const N: usize> SerialChain<N> {
     /// `N` joints, in order from base to tip. Links and joints off the path are ignored (so any tree works).
     ///
     /// # Errors
-    /// [`RobotError::Urdf`] for malformed XML/URDF; [`RobotError::UnknownLink`] when the base or tip link does not
+    /// [`RobotError::UrdfTooLarge`] and [`RobotError::UrdfTooDeep`] for text beyond the bounds checked before parsing
+    /// ([D17](crate::theory#d17)); [`RobotError::Urdf`] for malformed XML/URDF; [`RobotError::UnknownLink`] when the base or tip link does not
     /// exist; [`RobotError::MultipleParents`], [`RobotError::TipNotReachable`] when no path leads from base to tip;
     /// [`RobotError::UnsupportedJoint`] (floating, planar, spherical) and [`RobotError::MimicJoint`] for joints on the
     /// path; [`RobotError::JointCount`] when the path has a number of movable joints other than `N`;
     /// [`RobotError::MissingLimits`], [`RobotError::InvalidLimits`], [`RobotError::ZeroAxis`],
-    /// [`RobotError::NonFiniteUrdf`] for invalid joints on the path.
+    /// [`RobotError::NonFiniteUrdf`], [`RobotError::OutOfRange`] for invalid joints on the path.
     pub fn from_urdf_str(xml: &str, base_link: &str, tip_link: &str) -> Result<Self, RobotError> {
         let robot = parse_urdf(xml)?;
         Self::from_urdf_robot(&robot, base_link, tip_link)
@@ -30,17 +32,14 @@ impl<const N: usize> SerialChain<N> {
     /// Reads a URDF file and loads the chain from `base_link` to `tip_link`, as [`SerialChain::from_urdf_str`].
     ///
     /// # Errors
-    /// [`RobotError::File`] when the file cannot be read, then those of [`SerialChain::from_urdf_str`].
+    /// [`RobotError::File`] when the file cannot be read, [`RobotError::UrdfTooLarge`] for a file larger than
+    /// [`super::MAX_URDF_BYTES`] (not read), then those of [`SerialChain::from_urdf_str`].
     pub fn from_urdf_file(
         path: impl AsRef<Path>,
         base_link: &str,
         tip_link: &str,
     ) -> Result<Self, RobotError> {
-        let path = path.as_ref();
-        let xml = std::fs::read_to_string(path).map_err(|e| RobotError::File {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let xml = super::read_urdf_file(path.as_ref())?;
         Self::from_urdf_str(&xml, base_link, tip_link)
     }
 
@@ -128,11 +127,12 @@ impl<const N: usize> SerialChain<N> {
     }
 }
 
-/// Parses URDF text with urdf-rs.
+/// Parses URDF text with urdf-rs, once its size and nesting depth are checked.
 ///
 /// # Errors
-/// [`RobotError::Urdf`] with urdf-rs's message.
+/// [`RobotError::UrdfTooLarge`], [`RobotError::UrdfTooDeep`], [`RobotError::Urdf`] with urdf-rs's message.
 pub(crate) fn parse_urdf(xml: &str) -> Result<urdf_rs::Robot, RobotError> {
+    super::xml_bounds::check_urdf_text(xml)?;
     // urdf-rs and its XML parsers return errors on the inputs we tried (see the fuzz test), but they are third-party
     // code: a panic inside them must not escape a loading function that promises an error instead.
     std::panic::catch_unwind(|| urdf_rs::read_from_string(xml))
@@ -205,28 +205,58 @@ fn finite3(
 
 /// The URDF `<origin>`: translation `xyz` then rotation `rpy` (fixed axes x, y, z: `R = Rz(yaw) Ry(pitch) Rx(roll)`).
 fn joint_origin(joint: &urdf_rs::Joint) -> Result<Isometry3<f64>, RobotError> {
-    let xyz = finite3(joint, "origin xyz", &joint.origin.xyz)?;
-    let rpy = finite3(joint, "origin rpy", &joint.origin.rpy)?;
+    let xyz = in_range(joint, "origin xyz", &LENGTH_M, &joint.origin.xyz)?;
+    let rpy = in_range(joint, "origin rpy", &ANGLE_RAD, &joint.origin.rpy)?;
     Ok(Isometry3::from_parts(
         Translation3::from(xyz),
         UnitQuaternion::from_euler_angles(rpy.x, rpy.y, rpy.z),
     ))
 }
 
+/// The unit axis. Scaled by its largest component first, so that no square overflows (an axis of `1e200 1e200
+/// 1e200` is the diagonal) or underflows.
 fn joint_axis(joint: &urdf_rs::Joint) -> Result<Unit<Vector3<f64>>, RobotError> {
     let axis = finite3(joint, "axis", &joint.axis.xyz)?;
-    Unit::try_new(axis, MIN_AXIS_NORM).ok_or_else(|| RobotError::ZeroAxis {
-        joint: joint.name.clone(),
-        axis: *joint.axis.xyz,
-    })
+    let largest = axis.amax();
+    if largest < MIN_AXIS_COMPONENT {
+        return Err(RobotError::ZeroAxis {
+            joint: joint.name.clone(),
+            axis: *joint.axis.xyz,
+        });
+    }
+    Ok(Unit::new_normalize(axis / largest))
 }
 
-/// Position limits (rad or m): `±∞` for continuous joints, finite `lower < upper` otherwise.
+/// The values of `field`, finite and within `range`.
+fn in_range(
+    joint: &urdf_rs::Joint,
+    field: &'static str,
+    range: &PhysicalRange,
+    v: &[f64; 3],
+) -> Result<Vector3<f64>, RobotError> {
+    let values = finite3(joint, field, v)?;
+    match values.iter().find(|&&x| !range.contains(x)) {
+        Some(&value) => Err(RobotError::OutOfRange {
+            joint: joint.name.clone(),
+            field,
+            value,
+            expected: range.text,
+        }),
+        None => Ok(values),
+    }
+}
+
+/// Position limits (rad or m): `±∞` for continuous joints, `lower < upper` within [`ANGLE_RAD`] (revolute) or
+/// [`LENGTH_M`] (prismatic) otherwise.
 fn joint_limits(joint: &urdf_rs::Joint, kind: JointKind) -> Result<(f64, f64), RobotError> {
     if kind == JointKind::Continuous {
         return Ok((f64::NEG_INFINITY, f64::INFINITY));
     }
     let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+    let range = match kind {
+        JointKind::Prismatic => LENGTH_M,
+        _ => ANGLE_RAD,
+    };
     if lower.is_nan() || upper.is_nan() {
         return Err(RobotError::NonFiniteUrdf {
             joint: joint.name.clone(),
@@ -246,6 +276,13 @@ fn joint_limits(joint: &urdf_rs::Joint, kind: JointKind) -> Result<(f64, f64), R
             joint,
             lower,
             upper,
+        })
+    } else if let Some(value) = [lower, upper].into_iter().find(|&v| !range.contains(v)) {
+        Err(RobotError::OutOfRange {
+            joint,
+            field: "limit",
+            value,
+            expected: range.text,
         })
     } else {
         Ok((lower, upper))

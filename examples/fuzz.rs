@@ -1,0 +1,90 @@
+//! The fuzz harness for as long as asked: mutated URDFs, mutated scenario files and random control-step inputs in
+//! turn, each case on a 2 MiB worker thread with a time limit; prints the counts per kind and saves every failing input
+//! (panic, non-finite value inside `Ok`, hang) to `tests/data/fuzz_regressions/`, which `tests/fuzz.rs` replays.
+//!
+//! `cargo run --release --example fuzz -- [--seconds S] [--cases N] [--seed SEED] [--limit-seconds L]`
+//! (defaults: 60 s, no case limit, seed 1, 20 s per case; stops at the first of `--seconds` and `--cases` per kind).
+//! Exits with failure when a case failed.
+
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use servostack::fuzz::{regression_file, scenario_case, urdf_case, Case, Counts, Worker};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+const USAGE: &str = "usage: fuzz [--seconds S] [--cases N] [--seed SEED] [--limit-seconds L]";
+
+fn main() -> std::process::ExitCode {
+    servostack::report::exit_code(run())
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
+    let (mut seconds, mut cases, mut seed, mut limit) = (60.0, usize::MAX, 1u64, 20.0);
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let value = args.next().ok_or(USAGE)?;
+        match arg.as_str() {
+            "--seconds" => seconds = value.parse()?,
+            "--cases" => cases = value.parse()?,
+            "--seed" => seed = value.parse()?,
+            "--limit-seconds" => limit = value.parse()?,
+            other => return Err(format!("unexpected argument {other}; {USAGE}").into()),
+        }
+    }
+    // Panics are counted and their inputs saved: their messages on stderr would only hide the counts.
+    std::panic::set_hook(Box::new(|_| {}));
+    let regressions = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/fuzz_regressions");
+    let limit = Duration::from_secs_f64(limit);
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut worker = Worker::new()?;
+    let (mut urdf, mut scenario, mut control) =
+        (Counts::default(), Counts::default(), Counts::default());
+    let started = Instant::now();
+    let mut next_report = 10.0;
+    while started.elapsed().as_secs_f64() < seconds
+        && [urdf, scenario, control].iter().any(|c| c.cases < cases)
+    {
+        for (counts, case) in [
+            (&mut urdf, urdf_case(&mut rng)),
+            (&mut scenario, scenario_case(&mut rng)),
+            (
+                &mut control,
+                Case::Control {
+                    seed: rand::RngExt::random(&mut rng),
+                },
+            ),
+        ] {
+            if counts.cases >= cases {
+                continue;
+            }
+            let verdict = worker.run(case.clone(), limit);
+            counts.add(verdict.as_ref());
+            let failed = verdict.as_ref().is_none_or(|v| v.is_failure());
+            if failed {
+                let (name, content) = regression_file(&case);
+                std::fs::create_dir_all(&regressions)?;
+                std::fs::write(regressions.join(&name), content)?;
+                eprintln!("failure {verdict:?}: saved tests/data/fuzz_regressions/{name}");
+            }
+            if verdict.is_none() {
+                // The hung worker is abandoned; the next cases run on a new one.
+                worker = Worker::new()?;
+            }
+        }
+        if started.elapsed().as_secs_f64() > next_report {
+            next_report += 10.0;
+            eprintln!("{:.0} s: urdf {urdf}", started.elapsed().as_secs_f64());
+        }
+    }
+    println!("seed {seed}, {:.0} s", started.elapsed().as_secs_f64());
+    println!("urdf:     {urdf}");
+    println!("scenario: {scenario}");
+    println!("control:  {control}");
+    let failures = urdf.failures() + scenario.failures() + control.failures();
+    if failures > 0 {
+        return Err(
+            format!("{failures} failing cases (saved in tests/data/fuzz_regressions)").into(),
+        );
+    }
+    Ok(())
+}
