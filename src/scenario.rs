@@ -37,7 +37,9 @@
 //! # Ok::<(), servostack::scenario::ScenarioError>(())
 //! ```
 
-use crate::avoidance::{Geometry, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
+use crate::avoidance::{
+    CostError, Geometry, LinkColliders, MeshPaths, Obstacle, ObstacleCost, ObstaclePair,
+};
 use crate::camera::ImagePoint;
 use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
 use crate::controller::{ControllerParameters, RemovalCriterion};
@@ -56,6 +58,7 @@ use crate::task::TaskError;
 use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask, VisualTask};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Errors of scenario files. Each names the field at fault.
@@ -158,9 +161,11 @@ impl PoseSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointLimitsSpec {
-    /// `q^min` (m or rad per joint, as the chain), `N` finite values.
+    /// `q^min` (m or rad per joint, as the chain), `N` values: finite, or `-inf` for a continuous joint left
+    /// unlimited.
     pub lower: Vec<f64>,
-    /// `q^max` (m or rad per joint), `N` finite values, each above its `lower`.
+    /// `q^max` (m or rad per joint), `N` values, each above its `lower`: finite, or `inf` for a continuous joint left
+    /// unlimited. Finite limits on a continuous joint are soft limits the joint-limit cost keeps it within.
     pub upper: Vec<f64>,
 }
 
@@ -176,7 +181,7 @@ pub enum RobotSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         joint_limits: Option<JointLimitsSpec>,
     },
-    /// A chain of a URDF file (path relative to the scenario file) with a camera mount on the tip link.
+    /// A chain of a URDF file (path relative to the scenario file) with a camera on the tip link.
     Urdf {
         /// The URDF file.
         urdf: PathBuf,
@@ -184,8 +189,19 @@ pub enum RobotSpec {
         base_link: String,
         /// The tip (end-effector) link.
         tip_link: String,
-        /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`).
-        camera_mount: PoseSpec,
+        /// The camera frame as a link of the URDF (z forward, x right, y down), rigidly attached to the tip link by
+        /// fixed joints; `camera_mount`, if given, is then an extra offset of the camera in that link's frame.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        camera_link: Option<String>,
+        /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`), or in the `camera_link` frame when that is
+        /// given (default there: the identity). Required without `camera_link`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        camera_mount: Option<PoseSpec>,
+        /// Where `package://NAME/…` mesh URIs of the URDF's collision geometry lead: package name → directory
+        /// (relative to the scenario file). Searched before `ROS_PACKAGE_PATH`; relative mesh paths are resolved
+        /// against the URDF file's directory.
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        packages: BTreeMap<String, PathBuf>,
         /// Joint limits replacing the URDF's (default: the URDF's own).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         joint_limits: Option<JointLimitsSpec>,
@@ -489,7 +505,10 @@ impl Scenario {
             self.avoidance.activation_ratio,
         )
         .map_err(|e| match e {
-            SimError::Cost(cost) => invalid("avoidance.activation_ratio", cost.to_string()),
+            SimError::Cost(cost @ CostError::InvalidActivationRatio { .. }) => {
+                invalid("avoidance.activation_ratio", cost.to_string())
+            }
+            SimError::Cost(cost) => invalid("robot.joint_limits", cost.to_string()),
             other => other.into(),
         })?;
         let mut scene = scene;
@@ -531,25 +550,40 @@ impl Scenario {
         &self,
         chain: SerialChain<N>,
     ) -> Result<ObstacleCost<N>, ScenarioError> {
-        let urdf = match &self.robot {
-            RobotSpec::Builtin { builtin, .. } => builtin::urdf_by_name(builtin)?.to_owned(),
-            RobotSpec::Urdf { urdf, .. } => {
+        let (urdf, meshes) = match &self.robot {
+            RobotSpec::Builtin { builtin, .. } => (
+                builtin::urdf_by_name(builtin)?.to_owned(),
+                MeshPaths::new(""),
+            ),
+            RobotSpec::Urdf { urdf, packages, .. } => {
                 let path = self.resolve(urdf);
-                std::fs::read_to_string(&path).map_err(|e| RobotError::File {
+                let xml = std::fs::read_to_string(&path).map_err(|e| RobotError::File {
                     path: path.display().to_string(),
                     message: e.to_string(),
-                })?
+                })?;
+                let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+                let meshes =
+                    packages
+                        .iter()
+                        .fold(MeshPaths::new(dir), |meshes, (name, package_dir)| {
+                            meshes.with_package(name, self.resolve(package_dir))
+                        });
+                (xml, meshes)
             }
         };
-        let links = LinkColliders::from_urdf_str(&urdf, &chain)
-            .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
+        let links = LinkColliders::from_urdf_robot_with_meshes(
+            &crate::robot::parse_urdf(&urdf)?,
+            &chain,
+            &meshes,
+        )
+        .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
         let mut obstacles = Vec::with_capacity(self.obstacles.len());
         let mut pairs = Vec::new();
         for (i, spec) in self.obstacles.iter().enumerate() {
             let field = |name: &str| format!("obstacles[{i}].{name}");
             let pose = spec.pose.to_isometry(&field("pose"))?;
             obstacles.push(
-                Obstacle::new(&spec.name, spec.shape, pose)
+                Obstacle::new(&spec.name, spec.shape.clone(), pose)
                     .map_err(|e| invalid(&field("shape"), e.to_string()))?,
             );
             for link in &spec.links {
@@ -566,7 +600,7 @@ impl Scenario {
                     std::slice::from_ref(&pair),
                 )
                 .map_err(|e| match e {
-                    crate::avoidance::CostError::InvalidInfluenceDistance { .. } => {
+                    CostError::InvalidInfluenceDistance { .. } => {
                         invalid(&field("influence_distance_m"), e.to_string())
                     }
                     _ => invalid(&field("links"), e.to_string()),
@@ -605,20 +639,46 @@ impl Scenario {
                 urdf,
                 base_link,
                 tip_link,
+                camera_link,
                 camera_mount,
                 joint_limits,
+                ..
             } => {
                 let path = self.resolve(urdf);
-                let chain = SerialChain::from_urdf_file(&path, base_link, tip_link)?;
-                let mount = camera_mount.to_isometry("robot.camera_mount")?;
+                let xml = std::fs::read_to_string(&path).map_err(|e| RobotError::File {
+                    path: path.display().to_string(),
+                    message: e.to_string(),
+                })?;
+                let robot = crate::robot::parse_urdf(&xml)?;
+                let chain = SerialChain::from_urdf_robot(&robot, base_link, tip_link)?;
+                let offset = match camera_mount {
+                    Some(pose) => Some(pose.to_isometry("robot.camera_mount")?),
+                    None => None,
+                };
+                let mount = match (camera_link, offset) {
+                    (Some(link), offset) => {
+                        let tip_from_link =
+                            SerialChain::<0>::from_urdf_robot(&robot, tip_link, link)
+                                .map_err(|e| invalid("robot.camera_link", e.to_string()))?;
+                        tip_from_link.segment_from_tip() * offset.unwrap_or_else(Isometry3::identity)
+                    }
+                    (None, Some(mount)) => mount,
+                    (None, None) => {
+                        return Err(invalid(
+                            "robot.camera_mount",
+                            "give the camera as robot.camera_link (a URDF link) or robot.camera_mount (its pose \
+                             in the tip frame)",
+                        ))
+                    }
+                };
                 (chain, EyeInHand::new(mount)?, joint_limits)
             }
         };
         let Some(limits) = limits else {
             return Ok((chain, camera));
         };
-        let lower = joints::<N>("robot.joint_limits.lower", &limits.lower)?;
-        let upper = joints::<N>("robot.joint_limits.upper", &limits.upper)?;
+        let lower = limit_values::<N>("robot.joint_limits.lower", &limits.lower)?;
+        let upper = limit_values::<N>("robot.joint_limits.upper", &limits.upper)?;
         if let Some(i) = (0..N).find(|&i| lower[i] >= upper[i]) {
             return Err(invalid(
                 "robot.joint_limits.upper",
@@ -794,6 +854,29 @@ fn joints<const N: usize>(field: &str, values: &[f64]) -> Result<JointVector<N>,
     }
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
         return Err(invalid(field, format!("value {i} is not finite")));
+    }
+    Ok(JointVector::from_column_slice(values))
+}
+
+/// `N` joint limits: any value but NaN (`±inf` leaves a continuous joint unlimited; the chain checks which joints
+/// may be).
+fn limit_values<const N: usize>(
+    field: &str,
+    values: &[f64],
+) -> Result<JointVector<N>, ScenarioError> {
+    if values.len() != N {
+        return Err(invalid(
+            field,
+            format!("{} values for a robot with {N} joints", values.len()),
+        ));
+    }
+    if let Some(i) = values.iter().position(|v| v.is_nan()) {
+        return Err(invalid(
+            field,
+            format!(
+                "value {i} is NaN, not finite (only ±inf, for a continuous joint left unlimited)"
+            ),
+        ));
     }
     Ok(JointVector::from_column_slice(values))
 }

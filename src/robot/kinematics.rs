@@ -1,6 +1,6 @@
 //! Forward kinematics and geometric Jacobians of a [`SerialChain`], written into a preallocated workspace.
 
-use super::{ChainLink, JointKind, RobotError, SerialChain};
+use super::{ChainLink, Joint, JointKind, MimicJoint, RobotError, SerialChain};
 use crate::math::{JointVector, KinematicJacobian};
 use nalgebra::{Isometry3, Point3, SMatrix, Translation3, UnitQuaternion, Vector3};
 
@@ -75,7 +75,7 @@ impl<const N: usize> SerialChain<N> {
         }
         let mut rotation = UnitQuaternion::identity();
         let mut translation = Vector3::zeros();
-        for ((((joint, (&qi, &(s, c))), frame), axis), rotational) in self
+        for ((((joint, (&qi, &half)), frame), axis), rotational) in self
             .joints
             .iter()
             .zip(q.iter().zip(half_angles.iter()))
@@ -84,31 +84,43 @@ impl<const N: usize> SerialChain<N> {
             .zip(state.rotational.iter_mut())
         {
             *rotational = joint.kind.is_rotational();
-            let matrix = rotation.to_rotation_matrix();
-            let joint_origin = translation + matrix * joint.origin.translation.vector;
-            *axis = matrix * joint.axis_in_parent;
-            if *rotational {
-                // origin.rotation ⊗ (cos(q/2), sin(q/2) axis), unit by construction.
-                let local = joint.origin.rotation.into_inner() * c + joint.origin_times_axis * s;
-                rotation *= UnitQuaternion::new_unchecked(local);
-                translation = joint_origin;
-            } else {
-                rotation *= joint.origin.rotation;
-                translation = joint_origin + *axis * qi;
-            }
+            *axis = joint.advance(&mut rotation, &mut translation, qi, half);
             *frame = Isometry3::from_parts(Translation3::from(translation), rotation);
+        }
+        // Mimic joints after the last independent joint ([D16](crate::theory#d16)): mimic k, following joint i with
+        // multiplier m_k, adds m_k (a_k × (p − o_k), a_k) (rotational) or (m_k a_k, 0) (prismatic) to column i. As p is
+        // not known yet, the sums are kept as (Σ m_k a_k) × p + Σ −m_k a_k × o_k (+ Σ m_k a_k for prismatic joints).
+        let mut mimic_angular = [Vector3::zeros(); N];
+        let mut mimic_linear = [Vector3::zeros(); N];
+        for mimic in &self.mimic_joints {
+            let axis = mimic.advance(&mut rotation, &mut translation, q);
+            let (angular, linear) = (
+                &mut mimic_angular[mimic.leader],
+                &mut mimic_linear[mimic.leader],
+            );
+            if mimic.joint.kind.is_rotational() {
+                *angular += mimic.multiplier * axis;
+                *linear -= mimic.multiplier * axis.cross(&translation);
+            } else {
+                *linear += mimic.multiplier * axis;
+            }
         }
         let base_from_segment = Isometry3::from_parts(Translation3::from(translation), rotation);
         state.base_from_tip = base_from_segment * self.segment_from_tip;
 
-        // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
+        // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, plus the mimic terms, then rotated into
+        // tip axes.
         let tip = state.base_from_tip.translation.vector;
         let tip_from_base = state.base_from_tip.rotation.inverse().to_rotation_matrix();
-        for ((((joint, frame), axis), mut base_column), mut tip_column) in self
+        for (
+            ((((joint, frame), axis), (mimic_angular, mimic_linear)), mut base_column),
+            mut tip_column,
+        ) in self
             .joints
             .iter()
             .zip(state.base_from_segment.iter())
             .zip(state.axes.iter())
+            .zip(mimic_angular.iter().zip(mimic_linear.iter()))
             .zip(state.base_jacobian.column_iter_mut())
             .zip(state.tip_jacobian.column_iter_mut())
         {
@@ -118,6 +130,8 @@ impl<const N: usize> SerialChain<N> {
                 }
                 JointKind::Prismatic => (*axis, Vector3::zeros()),
             };
+            let linear = linear + mimic_angular.cross(&tip) + mimic_linear;
+            let angular = angular + mimic_angular;
             base_column.fixed_rows_mut::<3>(0).copy_from(&linear);
             base_column.fixed_rows_mut::<3>(3).copy_from(&angular);
             tip_column
@@ -128,6 +142,54 @@ impl<const N: usize> SerialChain<N> {
                 .copy_from(&(tip_from_base * angular));
         }
         Ok(&workspace.state)
+    }
+}
+
+impl Joint {
+    /// Moves the frame `base_from_parent = (rotation, translation)` — the child frame of the previous movable joint,
+    /// in the base frame — to `base_from_child = base_from_parent · origin · motion(θ)`, the motion a rotation by `θ`
+    /// (rad) about the axis or a translation by `θ` (m) along it; `half` is `(sin θ/2, cos θ/2)` for a rotational
+    /// joint (unused otherwise). Returns the joint axis in the base frame; the joint's origin `o` is the new
+    /// translation of a rotational joint.
+    #[inline]
+    fn advance(
+        &self,
+        rotation: &mut UnitQuaternion<f64>,
+        translation: &mut Vector3<f64>,
+        theta: f64,
+        (s, c): (f64, f64),
+    ) -> Vector3<f64> {
+        let matrix = rotation.to_rotation_matrix();
+        let joint_origin = *translation + matrix * self.origin.translation.vector;
+        let axis = matrix * self.axis_in_parent;
+        if self.kind.is_rotational() {
+            // origin.rotation ⊗ (cos(θ/2), sin(θ/2) axis), unit by construction.
+            let local = self.origin.rotation.into_inner() * c + self.origin_times_axis * s;
+            *rotation *= UnitQuaternion::new_unchecked(local);
+            *translation = joint_origin;
+        } else {
+            *rotation *= self.origin.rotation;
+            *translation = joint_origin + axis * theta;
+        }
+        axis
+    }
+}
+
+impl MimicJoint {
+    /// [`Joint::advance`] at this mimic joint's position for the chain coordinates `q`.
+    fn advance<const N: usize>(
+        &self,
+        rotation: &mut UnitQuaternion<f64>,
+        translation: &mut Vector3<f64>,
+        q: &JointVector<N>,
+    ) -> Vector3<f64> {
+        let theta = self.position(q);
+        let half = if self.joint.kind.is_rotational() {
+            (0.5 * theta).sin_cos()
+        } else {
+            (0.0, 1.0)
+        };
+        self.joint.advance(rotation, translation, theta, half)
     }
 }
 
@@ -170,16 +232,26 @@ impl<const N: usize> KinematicState<N> {
     /// # Errors
     /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
     pub fn base_from_link(&self, link: &ChainLink) -> Result<Isometry3<f64>, RobotError> {
-        Ok(match link.moved_by {
-            None => link.segment_from_link,
-            Some(index) => self.segment(index)? * link.segment_from_link,
-        })
+        let mut base_from_frame = match link.moved_by {
+            None => Isometry3::identity(),
+            Some(index) => *self.segment(index)?,
+        };
+        for mimic in &link.mimics {
+            self.mimic_leader(mimic)?;
+            mimic.advance(
+                &mut base_from_frame.rotation,
+                &mut base_from_frame.translation.vector,
+                &self.q,
+            );
+        }
+        Ok(base_from_frame * link.segment_from_link)
     }
 
     /// The point Jacobian of a point rigidly attached to `link`, at `point_in_base` (its current position, base
     /// frame): `out · q̇` is the point's linear velocity (m/s) in base axes. Column `i` is `a_i × (p − o_i)` for a
     /// rotational joint, `a_i` for a prismatic one, and zero for joints after the link (and for all joints when the
-    /// link is attached to the base). Allocates nothing.
+    /// link is attached to the base); a mimic joint before the link adds its own such column, times its multiplier, to
+    /// its leader's ([D16](crate::theory#d16)). Allocates nothing.
     ///
     /// # Errors
     /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
@@ -209,12 +281,35 @@ impl<const N: usize> KinematicState<N> {
             };
             out.column_mut(i).copy_from(&column);
         }
+        if let (Some(index), false) = (link.moved_by, link.mimics.is_empty()) {
+            let segment = self.segment(index)?;
+            let (mut rotation, mut translation) = (segment.rotation, segment.translation.vector);
+            for mimic in &link.mimics {
+                let leader = self.mimic_leader(mimic)?;
+                let axis = mimic.advance(&mut rotation, &mut translation, &self.q);
+                let column = if mimic.joint.kind.is_rotational() {
+                    axis.cross(&(point_in_base.coords - translation))
+                } else {
+                    axis
+                };
+                let mut leader_column = out.column_mut(leader);
+                leader_column += mimic.multiplier * column;
+            }
+        }
         Ok(())
     }
 
     fn segment(&self, index: usize) -> Result<&Isometry3<f64>, RobotError> {
         self.base_from_segment
             .get(index)
+            .ok_or(RobotError::JointIndexOutOfRange { index, joints: N })
+    }
+
+    /// The leader of a mimic joint, checked against `N`.
+    fn mimic_leader(&self, mimic: &MimicJoint) -> Result<usize, RobotError> {
+        let index = mimic.leader;
+        (index < N)
+            .then_some(index)
             .ok_or(RobotError::JointIndexOutOfRange { index, joints: N })
     }
 }
