@@ -425,6 +425,48 @@ impl RunKind {
     }
 }
 
+/// The joint counts [`with_joint_count`] dispatches to: `1..=MAX_JOINTS`.
+pub const MAX_JOINTS: usize = 12;
+
+/// Work generic in the joint count `N`, for [`with_joint_count`]: a runner's body, written once for every `N`.
+pub trait ForJointCount {
+    /// What the work returns.
+    type Output;
+    /// Does the work for a robot of `N` joints.
+    fn call<const N: usize>(self) -> Self::Output;
+}
+
+/// Calls `work.call::<N>()` with `N = joints`, a count known only at run time (read from a scenario's robot with
+/// [`Scenario::joint_count`]), for any `N` in `1..=`[`MAX_JOINTS`].
+///
+/// # Errors
+/// [`ScenarioError::Invalid`] naming `robot` for a joint count outside that range.
+pub fn with_joint_count<W: ForJointCount>(
+    joints: usize,
+    work: W,
+) -> Result<W::Output, ScenarioError> {
+    Ok(match joints {
+        1 => work.call::<1>(),
+        2 => work.call::<2>(),
+        3 => work.call::<3>(),
+        4 => work.call::<4>(),
+        5 => work.call::<5>(),
+        6 => work.call::<6>(),
+        7 => work.call::<7>(),
+        8 => work.call::<8>(),
+        9 => work.call::<9>(),
+        10 => work.call::<10>(),
+        11 => work.call::<11>(),
+        12 => work.call::<12>(),
+        _ => {
+            return Err(invalid(
+                "robot",
+                format!("the chain has {joints} joints: the runners handle 1 to {MAX_JOINTS}"),
+            ))
+        }
+    })
+}
+
 /// A scenario turned into models: the scene and what the runs need.
 #[derive(Debug, Clone)]
 pub struct Experiment<const N: usize> {
@@ -619,6 +661,19 @@ impl Scenario {
         }
     }
 
+    /// The number of independent joints of the scenario's robot (its chain from base to tip), for
+    /// [`with_joint_count`].
+    ///
+    /// # Errors
+    /// As [`Scenario::robot_model`], except a joint count.
+    pub fn joint_count(&self) -> Result<usize, ScenarioError> {
+        match self.robot_model::<0>() {
+            Ok(_) => Ok(0),
+            Err(ScenarioError::Robot(RobotError::JointCount { found, .. })) => Ok(found),
+            Err(error) => Err(error),
+        }
+    }
+
     /// The robot's chain (with the `joint_limits` override, if any) and camera mount.
     ///
     /// # Errors
@@ -659,7 +714,14 @@ impl Scenario {
                     (Some(link), offset) => {
                         let tip_from_link =
                             SerialChain::<0>::from_urdf_robot(&robot, tip_link, link)
-                                .map_err(|e| invalid("robot.camera_link", e.to_string()))?;
+                                .map_err(|e| {
+                                    invalid(
+                                        "robot.camera_link",
+                                        format!(
+                                            "{link:?} must hang from the tip link {tip_link:?} by fixed joints: {e}"
+                                        ),
+                                    )
+                                })?;
                         tip_from_link.segment_from_tip() * offset.unwrap_or_else(Isometry3::identity)
                     }
                     (None, Some(mount)) => mount,
