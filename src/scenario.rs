@@ -1,6 +1,6 @@
 //! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9), D12).
 //!
-//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera mount), the camera
+//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera link or mount), the camera
 //! intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target seen
 //! from the camera there: the target is placed so that this pose is reachable), the start configuration, the tasks
 //! (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.

@@ -53,7 +53,7 @@ pub enum Geometry {
         length_m: f64,
     },
     /// The convex hull of these points (m; at least three, not all on a line): a URDF `<mesh>` read by
-    /// [`Geometry::from_urdf`] holds the hull's vertices.
+    /// [`crate::avoidance::LinkColliders`] holds the hull's vertices.
     ConvexHull {
         /// The points (m).
         points_m: Vec<[f64; 3]>,

@@ -34,7 +34,13 @@
 //! # Joint limits
 //!
 //! Revolute and prismatic joints must carry finite limits `lower < upper` (rad or m). Continuous joints have no limit:
-//! their limits are `−∞` and `+∞` (a joint-limit cost must treat them as unlimited).
+//! their limits are `−∞` and `+∞`, which the joint-limit cost leaves out ([D15](crate::theory#d15)).
+//!
+//! # Mimic joints
+//!
+//! A URDF `<mimic>` joint on the path is no coordinate of the chain: its position is `m · q_i + o`, `i` the
+//! independent joint it follows ([`MimicJoint`]), and it adds `m` times its own column to column `i` of the
+//! Jacobians ([D16](crate::theory#d16)). Mimic joints are supported after the last independent joint of the path.
 //!
 //! ```
 //! use servostack::robot::{builtin, KinematicsWorkspace};
