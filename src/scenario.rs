@@ -1,9 +1,9 @@
 //! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9), D12).
 //!
-//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera link or mount), the camera
-//! intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target seen
-//! from the camera there: the target is placed so that this pose is reachable), the start configuration, the tasks
-//! (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.
+//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera link or mount), the
+//! camera intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target
+//! seen from the camera there: the target is placed so that this pose is reachable), the start configuration, the
+//! tasks (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.
 //! Field names carry their units (`translation_m`, `rpy_deg`); unknown fields are errors, so a value written in the
 //! wrong unit under the wrong name is caught, and every semantic error names its field.
 //!
