@@ -12,7 +12,8 @@
 //! ```toml
 //! [[obstacles]]                       # a world obstacle, pose in the robot base frame
 //! name = "post"
-//! shape = { sphere = { radius_m = 0.05 } }   # or box = { size_m = [..] }, cylinder/capsule = { radius_m, length_m }
+//! shape = { sphere = { radius_m = 0.05 } }   # or box = { size_m = [..] }, cylinder/capsule = { radius_m, length_m },
+//!                                     # convex_hull = { points_m = [[x, y, z], ...] }
 //! pose = { translation_m = [0.1, 0.2, 0.3], rpy_deg = [0.0, 0.0, 0.0] }
 //! influence_distance_m = 0.1          # the cost is zero farther than this
 //! links = ["afma6_camera", "afma6_end_effector"]   # links (with URDF <collision> shapes) kept away from it

@@ -70,9 +70,9 @@ impl<const N: usize> SerialChain<N> {
         let mut joints = Vec::with_capacity(N);
         let mut lower = Vec::with_capacity(N);
         let mut upper = Vec::with_capacity(N);
-        // The mimic joints met so far, with the name of the joint each follows in the end (resolved to an index once
-        // every independent joint is known).
-        let mut mimics: Vec<(MimicJoint, String)> = Vec::new();
+        // The mimic joints met so far, each with the name of the joint it follows in the end, its multiplier and
+        // offset (the name is resolved to an index once every independent joint is known).
+        let mut mimics: Vec<(Joint, String, f64, f64)> = Vec::new();
         let mut links = vec![ChainLink {
             name: base_link.to_owned(),
             moved_by: None,
@@ -106,17 +106,11 @@ impl<const N: usize> SerialChain<N> {
                     );
                     if urdf_joint.mimic.is_some() {
                         let (leader, multiplier, offset) = mimic_leader(robot, urdf_joint)?;
-                        let mimic = MimicJoint {
-                            joint,
-                            leader: usize::MAX, // set below, once the independent joints are known
-                            multiplier,
-                            offset,
-                        };
-                        mimics.push((mimic, leader));
+                        mimics.push((joint, leader, multiplier, offset));
                     } else {
-                        if let Some((mimic, _)) = mimics.first() {
+                        if let Some((mimic, ..)) = mimics.first() {
                             return Err(RobotError::MimicBeforeJoint {
-                                joint: mimic.joint.name.clone(),
+                                joint: mimic.name.clone(),
                                 next: urdf_joint.name.clone(),
                             });
                         }
@@ -138,15 +132,20 @@ impl<const N: usize> SerialChain<N> {
         }
 
         let mut mimic_joints = Vec::with_capacity(mimics.len());
-        for (mut mimic, leader) in mimics {
-            mimic.leader = joints
+        for (joint, leader, multiplier, offset) in mimics {
+            let leader = joints
                 .iter()
                 .position(|j| j.name == leader)
                 .ok_or_else(|| RobotError::MimicLeaderNotOnPath {
-                    joint: mimic.joint.name.clone(),
+                    joint: joint.name.clone(),
                     leader,
                 })?;
-            mimic_joints.push(mimic);
+            mimic_joints.push(MimicJoint {
+                joint,
+                leader,
+                multiplier,
+                offset,
+            });
         }
         for (link, &before) in links.iter_mut().zip(&mimics_before_link) {
             link.mimics = mimic_joints[..before].to_vec();
