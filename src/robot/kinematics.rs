@@ -87,40 +87,26 @@ impl<const N: usize> SerialChain<N> {
             *axis = joint.advance(&mut rotation, &mut translation, qi, half);
             *frame = Isometry3::from_parts(Translation3::from(translation), rotation);
         }
-        // Mimic joints after the last independent joint ([D16](crate::theory#d16)): mimic k, following joint i with
-        // multiplier m_k, adds m_k (a_k × (p − o_k), a_k) (rotational) or (m_k a_k, 0) (prismatic) to column i. As p is
-        // not known yet, the sums are kept as (Σ m_k a_k) × p + Σ −m_k a_k × o_k (+ Σ m_k a_k for prismatic joints).
-        let mut mimic_angular = [Vector3::zeros(); N];
-        let mut mimic_linear = [Vector3::zeros(); N];
+        // Mimic joints after the last independent joint move the frames beyond them ([D16](crate::theory#d16)).
+        let mut base_from_segment =
+            Isometry3::from_parts(Translation3::from(translation), rotation);
         for mimic in &self.mimic_joints {
-            let axis = mimic.advance(&mut rotation, &mut translation, q);
-            let (angular, linear) = (
-                &mut mimic_angular[mimic.leader],
-                &mut mimic_linear[mimic.leader],
+            mimic.advance(
+                &mut base_from_segment.rotation,
+                &mut base_from_segment.translation.vector,
+                q,
             );
-            if mimic.joint.kind.is_rotational() {
-                *angular += mimic.multiplier * axis;
-                *linear -= mimic.multiplier * axis.cross(&translation);
-            } else {
-                *linear += mimic.multiplier * axis;
-            }
         }
-        let base_from_segment = Isometry3::from_parts(Translation3::from(translation), rotation);
         state.base_from_tip = base_from_segment * self.segment_from_tip;
 
-        // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, plus the mimic terms, then rotated into
-        // tip axes.
+        // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
         let tip = state.base_from_tip.translation.vector;
         let tip_from_base = state.base_from_tip.rotation.inverse().to_rotation_matrix();
-        for (
-            ((((joint, frame), axis), (mimic_angular, mimic_linear)), mut base_column),
-            mut tip_column,
-        ) in self
+        for ((((joint, frame), axis), mut base_column), mut tip_column) in self
             .joints
             .iter()
             .zip(state.base_from_segment.iter())
             .zip(state.axes.iter())
-            .zip(mimic_angular.iter().zip(mimic_linear.iter()))
             .zip(state.base_jacobian.column_iter_mut())
             .zip(state.tip_jacobian.column_iter_mut())
         {
@@ -130,8 +116,6 @@ impl<const N: usize> SerialChain<N> {
                 }
                 JointKind::Prismatic => (*axis, Vector3::zeros()),
             };
-            let linear = linear + mimic_angular.cross(&tip) + mimic_linear;
-            let angular = angular + mimic_angular;
             base_column.fixed_rows_mut::<3>(0).copy_from(&linear);
             base_column.fixed_rows_mut::<3>(3).copy_from(&angular);
             tip_column
@@ -140,6 +124,30 @@ impl<const N: usize> SerialChain<N> {
             tip_column
                 .fixed_rows_mut::<3>(3)
                 .copy_from(&(tip_from_base * angular));
+        }
+        // Each mimic joint adds its own column, times its multiplier, to its leader's.
+        if let Some(last) = N.checked_sub(1) {
+            let (base_jacobian, tip_jacobian) = (&mut state.base_jacobian, &mut state.tip_jacobian);
+            add_mimic_columns(
+                &self.mimic_joints,
+                &state.base_from_segment[last],
+                q,
+                &tip,
+                |leader, linear, angular| {
+                    let (mut base_column, mut tip_column) = (
+                        base_jacobian.column_mut(leader),
+                        tip_jacobian.column_mut(leader),
+                    );
+                    let mut base_linear = base_column.fixed_rows_mut::<3>(0);
+                    base_linear += linear;
+                    let mut base_angular = base_column.fixed_rows_mut::<3>(3);
+                    base_angular += angular;
+                    let mut tip_linear = tip_column.fixed_rows_mut::<3>(0);
+                    tip_linear += tip_from_base * linear;
+                    let mut tip_angular = tip_column.fixed_rows_mut::<3>(3);
+                    tip_angular += tip_from_base * angular;
+                },
+            );
         }
         Ok(&workspace.state)
     }
@@ -172,6 +180,30 @@ impl Joint {
             *translation = joint_origin + axis * theta;
         }
         axis
+    }
+}
+
+/// Walks `mimics` (consecutive mimic joints) from the frame `base_from_segment` at chain coordinates `q`, and gives
+/// for each its leader `i` and its contribution to column `i` of the Jacobian of the point `p` (base frame):
+/// `m_k (a_k × (p − o_k), a_k)` for a rotational joint, `(m_k a_k, 0)` for a prismatic one ([D16](crate::theory#d16)).
+fn add_mimic_columns<const N: usize>(
+    mimics: &[MimicJoint],
+    base_from_segment: &Isometry3<f64>,
+    q: &JointVector<N>,
+    p: &Vector3<f64>,
+    mut add: impl FnMut(usize, Vector3<f64>, Vector3<f64>),
+) {
+    let (mut rotation, mut translation) = (
+        base_from_segment.rotation,
+        base_from_segment.translation.vector,
+    );
+    for mimic in mimics {
+        let axis = mimic.multiplier * mimic.advance(&mut rotation, &mut translation, q);
+        if mimic.joint.kind.is_rotational() {
+            add(mimic.leader, axis.cross(&(p - translation)), axis);
+        } else {
+            add(mimic.leader, axis, Vector3::zeros());
+        }
     }
 }
 
@@ -282,19 +314,19 @@ impl<const N: usize> KinematicState<N> {
             out.column_mut(i).copy_from(&column);
         }
         if let (Some(index), false) = (link.moved_by, link.mimics.is_empty()) {
-            let segment = self.segment(index)?;
-            let (mut rotation, mut translation) = (segment.rotation, segment.translation.vector);
             for mimic in &link.mimics {
-                let leader = self.mimic_leader(mimic)?;
-                let axis = mimic.advance(&mut rotation, &mut translation, &self.q);
-                let column = if mimic.joint.kind.is_rotational() {
-                    axis.cross(&(point_in_base.coords - translation))
-                } else {
-                    axis
-                };
-                let mut leader_column = out.column_mut(leader);
-                leader_column += mimic.multiplier * column;
+                self.mimic_leader(mimic)?;
             }
+            add_mimic_columns(
+                &link.mimics,
+                self.segment(index)?,
+                &self.q,
+                &point_in_base.coords,
+                |leader, linear, _| {
+                    let mut column = out.column_mut(leader);
+                    column += linear;
+                },
+            );
         }
         Ok(())
     }
