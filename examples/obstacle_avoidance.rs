@@ -7,7 +7,7 @@
 //!
 //! `cargo run --release --example obstacle_avoidance [-- [SCENARIO.toml] [--out DIR]]` (default DIR:
 //! `target/obstacle_avoidance`). Another scenario with `[[obstacles]]` runs the same way, on any robot of 1 to 12 joints
-//! whose URDF gives its links collision shapes — primitives or STL/OBJ meshes, e.g.
+//! whose URDF gives its links collision shapes — primitives or STL/OBJ/COLLADA meshes, e.g.
 //! `assets/scenarios/obstacle_mesh_afma6.toml`, whose links are STL meshes.
 
 use servostack::report::{write_experiment, ReportError, Summary};

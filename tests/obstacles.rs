@@ -287,26 +287,14 @@ fn composite_of_limits_obstacles_and_visibility() {
 #[test]
 fn bad_input_is_a_clear_error() {
     let chain = slider();
-    // A mesh format without a reader (COLLADA) names the link and the file.
+    // A mesh format without a reader (PLY) names the link and the file (refused before the file is read).
     let mesh_urdf = SLIDER.replace(
         r#"<sphere radius="0.1"/>"#,
-        r#"<mesh filename="cart.dae"/>"#,
+        r#"<mesh filename="cart.ply"/>"#,
     );
-    std::fs::write(
-        std::env::temp_dir().join("servostack-cart.dae"),
-        "<COLLADA/>",
-    )
-    .unwrap();
-    let robot =
-        urdf_rs::read_from_string(&mesh_urdf.replace("cart.dae", "servostack-cart.dae")).unwrap();
-    let err = LinkColliders::from_urdf_robot_with_meshes(
-        &robot,
-        &chain,
-        &servostack::avoidance::MeshPaths::new(std::env::temp_dir()),
-    )
-    .unwrap_err();
+    let err = LinkColliders::from_urdf_str(&mesh_urdf, &chain).unwrap_err();
     assert!(
-        matches!(&err, CostError::UnsupportedGeometry { link, geometry } if link == "cart" && geometry.contains("servostack-cart.dae")),
+        matches!(&err, CostError::UnsupportedGeometry { link, geometry } if link == "cart" && geometry.contains("cart.ply")),
         "{err:?}"
     );
     let links = LinkColliders::from_urdf_str(SLIDER, &chain).unwrap();

@@ -1,5 +1,5 @@
 //! Bring your own robot: seven-joint arms shaped like the URDFs users have (tests/data/robots: a Gen3-like arm with
-//! continuous joints, a Panda-like arm with a mimic finger gripper, link shapes as STL and OBJ meshes), run from
+//! continuous joints, a Panda-like arm with a mimic finger gripper, link shapes as STL, OBJ and COLLADA meshes), run from
 //! scenario files (tests/data/scenarios) with the camera given as a URDF link; mesh errors name the link and the file.
 
 use approx::assert_relative_eq;
@@ -236,10 +236,11 @@ fn mesh_collider(filename: &str, scale: &str) -> Result<Geometry, CostError> {
     Ok(collider.geometry().clone())
 }
 
-/// The three formats read as the shapes they describe: the binary STL box is the scaled box (distances equal a box
-/// primitive's), the ASCII STL cylinder a 12-gon prism of the scaled radius, the OBJ capsule envelope its 18 vertices.
+/// The formats read as the shapes they describe: the binary STL box is the scaled box (distances equal a box
+/// primitive's), the ASCII STL cylinder a 12-gon prism of the scaled radius, the OBJ capsule envelope its 18 vertices,
+/// the COLLADA tetrahedron its corners in metres.
 #[test]
-fn stl_binary_stl_ascii_and_obj_meshes_become_their_convex_hulls() {
+fn stl_obj_and_collada_meshes_become_their_convex_hulls() {
     let ball = Collider::new(
         "ball",
         Geometry::Sphere { radius_m: 0.01 },
@@ -298,6 +299,35 @@ fn stl_binary_stl_ascii_and_obj_meshes_become_their_convex_hulls() {
         panic!("a mesh is a convex hull")
     };
     assert_eq!(points_m.len(), 18);
+    // COLLADA, its unit (1 cm) applied: the tetrahedron's corners 0.1 m along each axis.
+    let Geometry::ConvexHull { points_m } = mesh_collider(
+        "package://arm_fixtures_description/meshes/tetra_cm.dae",
+        "1 1 1",
+    )
+    .unwrap() else {
+        panic!("a mesh is a convex hull")
+    };
+    assert_eq!(points_m.len(), 4);
+    let farthest = points_m
+        .iter()
+        .map(|p| Vector3::from(*p).norm())
+        .fold(0.0, f64::max);
+    assert_relative_eq!(farthest, 0.1, epsilon = 1e-6);
+}
+
+/// A binary STL whose 80-byte header starts with `solid`, as many exporters write, is read as binary.
+#[test]
+fn binary_stl_with_a_solid_header_is_read_as_binary() {
+    let mut bytes = std::fs::read(package().join("meshes/box.stl")).unwrap();
+    bytes[..12].copy_from_slice(b"solid box   ");
+    let path = std::env::temp_dir().join(format!("servostack-solid-{}.stl", std::process::id()));
+    std::fs::write(&path, &bytes).unwrap();
+    let result = mesh_collider(path.to_str().unwrap(), "1 1 1");
+    std::fs::remove_file(&path).unwrap();
+    let Geometry::ConvexHull { points_m } = result.unwrap() else {
+        panic!("a mesh is a convex hull")
+    };
+    assert_eq!(points_m.len(), 8);
 }
 
 #[test]

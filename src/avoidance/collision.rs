@@ -85,7 +85,7 @@ impl Geometry {
     ///
     /// # Errors
     /// For a `<mesh>`: [`CostError::UnknownPackage`], [`CostError::MeshFile`], [`CostError::MalformedMesh`],
-    /// [`CostError::UnsupportedGeometry`] (a format other than STL and OBJ), [`CostError::InvalidGeometry`] (a
+    /// [`CostError::UnsupportedGeometry`] (a format other than STL, OBJ and COLLADA), [`CostError::InvalidGeometry`] (a
     /// non-finite or zero scale), [`CostError::DegenerateConvexHull`] (a mesh with all its vertices on a line).
     pub(crate) fn from_urdf(
         link: &str,

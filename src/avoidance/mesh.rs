@@ -2,9 +2,11 @@
 //! vertices.
 //!
 //! A mesh is read once, when the link shapes are built ([`super::LinkColliders`]); the obstacle cost then works on
-//! the convex hull of its vertices ([`super::Geometry::ConvexHull`]). Formats: STL, binary and ASCII (crate
-//! `stl_io`), and Wavefront OBJ (crate `tobj`), told apart by the file extension. Vertices are in the mesh file's
-//! unit, scaled by the URDF `scale` per axis to metres (URDF meshes are in metres unless scaled).
+//! the convex hull of its vertices ([`super::Geometry::ConvexHull`]). Formats, told apart by the file extension (any
+//! case), read by the crate `mesh-loader`: STL, binary and ASCII (a binary file whose header starts with `solid`, as
+//! many exporters write, included), Wavefront OBJ, and COLLADA (`.dae`, its `<unit>` and node transforms applied).
+//! Vertices are in the file's unit, scaled by the URDF `scale` per axis to metres (URDF meshes are in metres unless
+//! scaled).
 
 use super::CostError;
 use nalgebra::Vector3;
@@ -94,7 +96,7 @@ impl MeshPaths {
 ///
 /// # Errors
 /// [`CostError::MeshFile`] when the file cannot be read, [`CostError::MalformedMesh`] when it is not a valid STL or
-/// OBJ file or holds no vertex, [`CostError::UnsupportedGeometry`] for another extension (COLLADA `.dae`, …).
+/// OBJ or COLLADA file or holds no vertex, [`CostError::UnsupportedGeometry`] for another extension.
 pub(crate) fn read_vertices(
     link: &str,
     path: &Path,
@@ -105,6 +107,18 @@ pub(crate) fn read_vertices(
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     let file = || path.display().to_string();
+    let loader = mesh_loader::Loader::default();
+    let load = match extension.as_deref() {
+        Some("stl") => mesh_loader::Loader::load_stl_from_slice,
+        Some("obj") => mesh_loader::Loader::load_obj_from_slice,
+        Some("dae") => mesh_loader::Loader::load_collada_from_slice,
+        _ => {
+            return Err(CostError::UnsupportedGeometry {
+                link: link.to_owned(),
+                geometry: format!("mesh {:?} (mesh formats: .stl, .obj, .dae)", file()),
+            })
+        }
+    };
     let bytes = std::fs::read(path).map_err(|e| CostError::MeshFile {
         link: link.to_owned(),
         file: file(),
@@ -115,33 +129,13 @@ pub(crate) fn read_vertices(
         file: file(),
         message,
     };
-    let vertices: Vec<[f32; 3]> = match extension.as_deref() {
-        Some("stl") => stl_io::read_stl(&mut std::io::Cursor::new(&bytes))
-            .map_err(|e| malformed(e.to_string()))?
-            .vertices
-            .into_iter()
-            .map(|v| v.0)
-            .collect(),
-        Some("obj") => {
-            let options = tobj::LoadOptions::default();
-            // Materials are not geometry: every `mtllib` is left unread.
-            let (models, _) = tobj::load_obj_buf(&mut bytes.as_slice(), &options, |_| {
-                Err(tobj::LoadError::OpenFileFailed)
-            })
-            .map_err(|e| malformed(e.to_string()))?;
-            models
-                .iter()
-                .flat_map(|m| m.mesh.positions.chunks_exact(3))
-                .map(|p| [p[0], p[1], p[2]])
-                .collect()
-        }
-        _ => {
-            return Err(CostError::UnsupportedGeometry {
-                link: link.to_owned(),
-                geometry: format!("mesh {:?} (mesh formats: .stl, .obj)", file()),
-            })
-        }
-    };
+    // Materials an OBJ file names are not geometry: mesh-loader skips those it cannot read.
+    let scene = load(&loader, &bytes, path).map_err(|e| malformed(e.to_string()))?;
+    let vertices: Vec<[f32; 3]> = scene
+        .meshes
+        .into_iter()
+        .flat_map(|mesh| mesh.vertices)
+        .collect();
     if vertices.is_empty() {
         return Err(malformed("no vertex".to_owned()));
     }

@@ -61,8 +61,9 @@ pub enum CostError {
         /// Its value.
         value: f64,
     },
-    /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>` in a format other than STL or OBJ).
-    #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule, STL and OBJ meshes)")]
+    /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>` in a format other than STL, OBJ or
+    /// COLLADA).
+    #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule, STL, OBJ and COLLADA meshes)")]
     UnsupportedGeometry {
         /// The link.
         link: String,

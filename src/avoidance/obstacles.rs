@@ -81,7 +81,7 @@ impl LinkColliders {
     /// # Errors
     /// As [`LinkColliders::from_urdf_robot`]; for meshes, each naming the link and the file:
     /// [`CostError::UnknownPackage`], [`CostError::MeshFile`] (missing or unreadable), [`CostError::MalformedMesh`],
-    /// [`CostError::UnsupportedGeometry`] (a format other than STL and OBJ), [`CostError::DegenerateConvexHull`].
+    /// [`CostError::UnsupportedGeometry`] (a format other than STL, OBJ and COLLADA), [`CostError::DegenerateConvexHull`].
     pub fn from_urdf_robot_with_meshes<const N: usize>(
         robot: &urdf_rs::Robot,
         chain: &SerialChain<N>,
