@@ -304,9 +304,15 @@ fn missing_limits() {
         upper,
     };
     // URDF 1.0 without <limit>: urdf-rs reports lower = upper = 0.
-    assert_eq!(
-        load::<2>(&two_joints("revolute", ""), "a", "c"),
-        missing(0.0, 0.0)
+    let err = load::<2>(&two_joints("revolute", ""), "a", "c");
+    assert_eq!(err, missing(0.0, 0.0));
+    // The message says how to supply limits.
+    let message = err.to_string();
+    assert!(
+        message.contains("j2")
+            && message.contains("<limit lower=")
+            && message.contains("continuous"),
+        "{message}"
     );
     assert_eq!(
         load::<2>(&two_joints("prismatic", ""), "a", "c"),

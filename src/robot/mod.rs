@@ -168,7 +168,11 @@ pub enum RobotError {
     },
     /// A revolute or prismatic joint has no usable `<limit lower upper>` (absent, infinite, or `lower = upper = 0`,
     /// which is what urdf-rs reports for a missing `<limit>` element before URDF 1.2).
-    #[error("joint {joint:?} has no position limits (lower = {lower}, upper = {upper})")]
+    #[error(
+        "joint {joint:?} has no position limits (lower = {lower}, upper = {upper}): give it \
+         <limit lower=\"…\" upper=\"…\" effort=\"…\" velocity=\"…\"/> in the URDF (rad or m), or make it \
+         type=\"continuous\" if it turns without limit"
+    )]
     MissingLimits {
         /// Joint name.
         joint: String,
