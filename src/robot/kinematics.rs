@@ -128,7 +128,7 @@ impl<const N: usize> SerialChain<N> {
         // Each mimic joint adds its own column, times its multiplier, to its leader's.
         if let Some(last) = N.checked_sub(1) {
             let (base_jacobian, tip_jacobian) = (&mut state.base_jacobian, &mut state.tip_jacobian);
-            add_mimic_columns(
+            for_each_mimic_column(
                 &self.mimic_joints,
                 &state.base_from_segment[last],
                 q,
@@ -186,7 +186,7 @@ impl Joint {
 /// Walks `mimics` (consecutive mimic joints) from the frame `base_from_segment` at chain coordinates `q`, and gives
 /// for each its leader `i` and its contribution to column `i` of the Jacobian of the point `p` (base frame):
 /// `m_k (a_k × (p − o_k), a_k)` for a rotational joint, `(m_k a_k, 0)` for a prismatic one ([D16](crate::theory#d16)).
-fn add_mimic_columns<const N: usize>(
+fn for_each_mimic_column<const N: usize>(
     mimics: &[MimicJoint],
     base_from_segment: &Isometry3<f64>,
     q: &JointVector<N>,
@@ -317,7 +317,7 @@ impl<const N: usize> KinematicState<N> {
             for mimic in &link.mimics {
                 self.mimic_leader(mimic)?;
             }
-            add_mimic_columns(
+            for_each_mimic_column(
                 &link.mimics,
                 self.segment(index)?,
                 &self.q,
