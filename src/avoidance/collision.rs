@@ -23,7 +23,7 @@ use parry3d_f64::query;
 use parry3d_f64::shape::{Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, SharedShape};
 
 /// A collision shape, in its own frame (sizes in m, all finite and > 0): a primitive centred on the origin, or the
-/// convex hull of points (a URDF mesh, [D17](crate::theory#d17)).
+/// convex hull of points (a URDF mesh, [D20](crate::theory#d20)).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Geometry {
@@ -81,7 +81,7 @@ impl Geometry {
     }
 
     /// The geometry read from a URDF `<collision>` element of `link`; a `<mesh>` is read from the file `meshes`
-    /// leads to, scaled, and reduced to the vertices of its convex hull ([D17](crate::theory#d17)).
+    /// leads to, scaled, and reduced to the vertices of its convex hull ([D20](crate::theory#d20)).
     ///
     /// # Errors
     /// For a `<mesh>`: [`CostError::UnknownPackage`], [`CostError::MeshFile`], [`CostError::MalformedMesh`],

@@ -14,7 +14,7 @@
 //!
 //! An **unlimited** joint (limits `−∞` and `+∞`, a URDF continuous joint) has no activation band: its term of `h` and
 //! its entry of `∇h` are zero, it never violates its limits, and its angle is used as it is, never wrapped
-//! ([D15](crate::theory#d15)). Soft limits for such a joint are finite limits given in its place
+//! ([D18](crate::theory#d18)). Soft limits for such a joint are finite limits given in its place
 //! ([`crate::robot::SerialChain::with_limits`], a scenario's `robot.joint_limits`).
 
 use super::{dead_band, Cost, CostError};
@@ -71,7 +71,7 @@ impl<const N: usize> JointLimits<N> {
         self.rho
     }
 
-    /// `true` when joint `i` is unlimited (limits `−∞`, `+∞`): it has no term in `h` ([D15](crate::theory#d15)).
+    /// `true` when joint `i` is unlimited (limits `−∞`, `+∞`): it has no term in `h` ([D18](crate::theory#d18)).
     pub fn is_unlimited(&self, joint: usize) -> bool {
         self.lower[joint] == f64::NEG_INFINITY
     }

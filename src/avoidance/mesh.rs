@@ -1,4 +1,4 @@
-//! URDF mesh files for collision geometry ([D17](crate::theory#d17)): where a `<mesh filename>` leads, and its
+//! URDF mesh files for collision geometry ([D20](crate::theory#d20)): where a `<mesh filename>` leads, and its
 //! vertices.
 //!
 //! A mesh is read once, when the link shapes are built ([`super::LinkColliders`]); the obstacle cost then works on

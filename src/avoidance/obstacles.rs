@@ -76,7 +76,7 @@ impl LinkColliders {
     }
 
     /// As [`LinkColliders::from_urdf_robot`], with the mesh files of `<mesh>` elements found through `meshes`; each
-    /// mesh is read once, here, and becomes the convex hull of its vertices ([D17](crate::theory#d17)).
+    /// mesh is read once, here, and becomes the convex hull of its vertices ([D20](crate::theory#d20)).
     ///
     /// # Errors
     /// As [`LinkColliders::from_urdf_robot`]; for meshes, each naming the link and the file:

@@ -8,7 +8,7 @@
 //! | name | `N` | base → tip (camera) | model |
 //! |---|---|---|---|
 //! | `"afma6"` | 6 | `afma6_base` → `afma6_end_effector` (`afma6_camera`) | Afma6-like gantry of the [peer scene](crate::theory::peer_scene), [theory §9](crate::theory#s9), [D12](crate::theory#d12) |
-//! | `"afma6_coupled"` | 6 | as `"afma6"` | the same gantry with ViSP's coupling of the last two joints, a mimic joint ([D16](crate::theory#d16)) |
+//! | `"afma6_coupled"` | 6 | as `"afma6"` | the same gantry with ViSP's coupling of the last two joints, a mimic joint ([D19](crate::theory#d19)) |
 //! | `"ur5e"` | 6 | `base_link` → `tool0` (`camera_link`) | UR5e-class arm from its published DH parameters |
 //! | `"rail7"` | 7 | `rail7_base` → `rail7_tool` (`rail7_camera`) | a mixed 7-joint test chain (not a real robot) |
 //!

@@ -87,7 +87,7 @@ impl<const N: usize> SerialChain<N> {
             *axis = joint.advance(&mut rotation, &mut translation, qi, half);
             *frame = Isometry3::from_parts(Translation3::from(translation), rotation);
         }
-        // Mimic joints after the last independent joint move the frames beyond them ([D16](crate::theory#d16)).
+        // Mimic joints after the last independent joint move the frames beyond them ([D19](crate::theory#d19)).
         let mut base_from_segment =
             Isometry3::from_parts(Translation3::from(translation), rotation);
         for mimic in &self.mimic_joints {
@@ -185,7 +185,7 @@ impl Joint {
 
 /// Walks `mimics` (consecutive mimic joints) from the frame `base_from_segment` at chain coordinates `q`, and gives
 /// for each its leader `i` and its contribution to column `i` of the Jacobian of the point `p` (base frame):
-/// `m_k (a_k × (p − o_k), a_k)` for a rotational joint, `(m_k a_k, 0)` for a prismatic one ([D16](crate::theory#d16)).
+/// `m_k (a_k × (p − o_k), a_k)` for a rotational joint, `(m_k a_k, 0)` for a prismatic one ([D19](crate::theory#d19)).
 fn for_each_mimic_column<const N: usize>(
     mimics: &[MimicJoint],
     base_from_segment: &Isometry3<f64>,
@@ -283,7 +283,7 @@ impl<const N: usize> KinematicState<N> {
     /// frame): `out · q̇` is the point's linear velocity (m/s) in base axes. Column `i` is `a_i × (p − o_i)` for a
     /// rotational joint, `a_i` for a prismatic one, and zero for joints after the link (and for all joints when the
     /// link is attached to the base); a mimic joint before the link adds its own such column, times its multiplier, to
-    /// its leader's ([D16](crate::theory#d16)). Allocates nothing.
+    /// its leader's ([D19](crate::theory#d19)). Allocates nothing.
     ///
     /// # Errors
     /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.

@@ -34,13 +34,13 @@
 //! # Joint limits
 //!
 //! Revolute and prismatic joints must carry finite limits `lower < upper` (rad or m). Continuous joints have no limit:
-//! their limits are `−∞` and `+∞`, which the joint-limit cost leaves out ([D15](crate::theory#d15)).
+//! their limits are `−∞` and `+∞`, which the joint-limit cost leaves out ([D18](crate::theory#d18)).
 //!
 //! # Mimic joints
 //!
 //! A URDF `<mimic>` joint on the path is no coordinate of the chain: its position is `m · q_i + o`, `i` the
 //! independent joint it follows ([`MimicJoint`]), and it adds `m` times its own column to column `i` of the
-//! Jacobians ([D16](crate::theory#d16)). Mimic joints are supported after the last independent joint of the path.
+//! Jacobians ([D19](crate::theory#d19)). Mimic joints are supported after the last independent joint of the path.
 //!
 //! ```
 //! use servostack::robot::{builtin, KinematicsWorkspace};
@@ -147,7 +147,7 @@ pub enum RobotError {
         leader: String,
     },
     /// A mimic joint on the path comes before an independent joint: mimic joints are supported after the chain's last
-    /// independent joint (a coupled last axis, a finger as tip link), [D16](crate::theory#d16).
+    /// independent joint (a coupled last axis, a finger as tip link), [D19](crate::theory#d19).
     #[error(
         "mimic joint {joint:?} comes before the independent joint {next:?}: mimic joints are supported only after \
          the last independent joint of the chain"
@@ -328,7 +328,7 @@ impl Joint {
     }
 }
 
-/// A mimic joint of the chain ([D16](crate::theory#d16)): a movable joint whose position is not a coordinate of the
+/// A mimic joint of the chain ([D19](crate::theory#d19)): a movable joint whose position is not a coordinate of the
 /// chain but follows an independent joint `i` (the *leader*),
 ///
 /// ```text
@@ -474,7 +474,7 @@ impl<const N: usize> SerialChain<N> {
     /// The same chain with other joint limits `lower < upper` (rad for revolute and continuous joints, m for
     /// prismatic joints), e.g. the narrower ranges of a controller's safety configuration. Limits must be finite,
     /// except that a continuous joint may keep `(−∞, +∞)` (unlimited); a continuous joint given finite limits is
-    /// limited from then on — soft limits the joint-limit cost keeps it within ([D15](crate::theory#d15)) — and its
+    /// limited from then on — soft limits the joint-limit cost keeps it within ([D18](crate::theory#d18)) — and its
     /// [`JointKind`] is unchanged. Nothing else of the chain changes.
     ///
     /// ```

@@ -14,7 +14,7 @@ impl<const N: usize> SerialChain<N> {
     ///
     /// Fixed joints on the path are folded into the transforms; revolute, continuous and prismatic joints become the
     /// `N` joints, in order from base to tip, except `<mimic>` joints, which follow one of those
-    /// ([`SerialChain::mimic_joints`], [D16](crate::theory#d16)). Links and joints off the path are ignored (so any
+    /// ([`SerialChain::mimic_joints`], [D19](crate::theory#d19)). Links and joints off the path are ignored (so any
     /// tree works, e.g. an arm whose gripper fingers mimic each other on branches off the path).
     ///
     /// # Errors
@@ -169,7 +169,7 @@ impl<const N: usize> SerialChain<N> {
 }
 
 /// The independent joint a mimic joint follows in the end, with the composed multiplier and offset: following
-/// `θ_j = m_j θ_k + o_j` through mimics of mimics, `θ = (Π m) θ_leader + o` ([D16](crate::theory#d16)).
+/// `θ_j = m_j θ_k + o_j` through mimics of mimics, `θ = (Π m) θ_leader + o` ([D19](crate::theory#d19)).
 ///
 /// # Errors
 /// [`RobotError::MimicUnknownJoint`], [`RobotError::MimicCycle`], [`RobotError::NonFiniteUrdf`] (`"mimic"`).
