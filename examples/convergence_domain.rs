@@ -7,8 +7,8 @@
 //! DIR = `target/convergence_domain/<scenario>`). `--noise` and `--calib` add uniform pixel noise and an intrinsics
 //! error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
 
-use servostack::scenario::{Scenario, ScenarioError};
-use servostack::study::{standard_families, Slice, Study, StudyResult};
+use servostack::scenario::{with_joint_count, ForJointCount, Scenario};
+use servostack::study::{standard_families, Slice, Study, StudyError, StudyResult};
 use std::path::PathBuf;
 
 struct Options {
@@ -105,11 +105,23 @@ fn parse(args: &[String]) -> Result<Options, String> {
     Ok(options)
 }
 
-/// The joint count of the scenario's robot (6 or 7: the robots this example is built for).
-fn joint_count(scenario: &Scenario) -> Result<usize, ScenarioError> {
-    match scenario.robot_model::<6>() {
-        Ok(_) => Ok(6),
-        Err(_) => scenario.robot_model::<7>().map(|_| 7),
+/// [`run`] for the joint count of the scenario's robot.
+struct RunStudy<'a>(&'a Study<'a>, &'a Options);
+
+impl ForJointCount for RunStudy<'_> {
+    type Output = Result<(StudyResult, Slice), Box<dyn std::error::Error>>;
+    fn call<const N: usize>(self) -> Self::Output {
+        run::<N>(self.0, self.1)
+    }
+}
+
+/// One draw of a family as a scenario, for the joint count of the scenario's robot.
+struct DrawScenario<'a>(&'a Study<'a>, &'a str, usize);
+
+impl ForJointCount for DrawScenario<'_> {
+    type Output = Result<Scenario, StudyError>;
+    fn call<const N: usize>(self) -> Self::Output {
+        Ok(self.0.situation::<N>(self.1, self.2)?.0)
     }
 }
 
@@ -166,11 +178,8 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
     let study = Study::new(&scenario, families, options.draws, options.seed)?;
     if let Some((family, draw)) = &options.dump {
         // One draw as a scenario file, to rerun it with `run_scenario` and read its event log and figures.
-        let situation = match study.situation::<6>(family, *draw) {
-            Ok((situation, ..)) => situation,
-            Err(_) => study.situation::<7>(family, *draw)?.0,
-        };
-        let mut situation = situation;
+        let mut situation =
+            with_joint_count(scenario.joint_count()?, DrawScenario(&study, family, *draw))??;
         situation.name = format!("{}_{family}_{draw}", scenario.name);
         let text = toml::to_string(&situation)?;
         let path = PathBuf::from(format!("{}.toml", situation.name));
@@ -178,10 +187,7 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         println!("wrote {}", path.display());
         return Ok(());
     }
-    let (result, slice) = match joint_count(&scenario)? {
-        6 => run::<6>(&study, &options)?,
-        _ => run::<7>(&study, &options)?,
-    };
+    let (result, slice) = with_joint_count(scenario.joint_count()?, RunStudy(&study, &options))??;
     print!("{result}");
     for (method, outcomes) in &slice.methods {
         let converged = outcomes.iter().filter(|&&o| o == "converged").count();

@@ -5,11 +5,27 @@
 //! figures (joints, errors, image, criteria, and the smallest link–obstacle distance over time) and `summary.json`
 //! (the paper experiment's schema plus `min_obstacle_distance` and the `collision` outcome).
 //!
-//! `cargo run --release --example obstacle_avoidance [-- --out DIR]` (default DIR: `target/obstacle_avoidance`)
+//! `cargo run --release --example obstacle_avoidance [-- [SCENARIO.toml] [--out DIR]]` (default DIR:
+//! `target/obstacle_avoidance`). Another scenario with `[[obstacles]]` runs the same way, on any robot of 1 to 12 joints
+//! whose URDF gives its links collision shapes — primitives or STL/OBJ/COLLADA meshes, e.g.
+//! `assets/scenarios/obstacle_mesh_afma6.toml`, whose links are STL meshes.
 
-use servostack::report::write_experiment;
-use servostack::scenario::Scenario;
-use std::path::PathBuf;
+use servostack::report::{write_experiment, ReportError, Summary};
+use servostack::scenario::{with_joint_count, ForJointCount, Scenario};
+use std::path::{Path, PathBuf};
+
+/// `write_experiment::<N>` for the joint count of the scenario's robot.
+struct WriteExperiment<'a> {
+    scenario: &'a Scenario,
+    out: &'a Path,
+}
+
+impl ForJointCount for WriteExperiment<'_> {
+    type Output = Result<Summary, ReportError>;
+    fn call<const N: usize>(self) -> Self::Output {
+        write_experiment::<N>(self.scenario, self.out)
+    }
+}
 
 fn main() -> std::process::ExitCode {
     servostack::report::exit_code(run())
@@ -17,15 +33,22 @@ fn main() -> std::process::ExitCode {
 
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let out = match args.as_slice() {
-        [] => PathBuf::from("target/obstacle_avoidance"),
-        [flag, dir] if flag == "--out" => PathBuf::from(dir),
-        _ => return Err("usage: obstacle_avoidance [--out DIR]".into()),
-    };
-    let path =
+    let default_scenario =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/obstacle_afma6.toml");
+    let default_out = PathBuf::from("target/obstacle_avoidance");
+    let (path, out) = match args.as_slice() {
+        [] => (default_scenario, default_out),
+        [flag, dir] if flag == "--out" => (default_scenario, PathBuf::from(dir)),
+        [path] => (PathBuf::from(path), default_out),
+        [path, flag, dir] if flag == "--out" => (PathBuf::from(path), PathBuf::from(dir)),
+        _ => return Err("usage: obstacle_avoidance [SCENARIO.toml] [--out DIR]".into()),
+    };
     let scenario = Scenario::from_file(&path)?;
-    let summary = write_experiment::<6>(&scenario, &out)?;
+    let work = WriteExperiment {
+        scenario: &scenario,
+        out: &out,
+    };
+    let summary = with_joint_count(scenario.joint_count()?, work)??;
     print!("{summary}");
     println!("figures and summary.json in {}", out.display());
     Ok(())

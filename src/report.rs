@@ -383,7 +383,9 @@ mod figures {
             title: format!("{name}: normalised joint positions (limits at 0 and 1)"),
             x_label: "iteration".into(),
             y_label: "(q − q_min) / (q_max − q_min)".into(),
+            // An unlimited (continuous) joint has no limits to be normalised by: it is left out.
             series: (0..N)
+                .filter(|&j| !run.limits.is_unlimited(j))
                 .map(|j| {
                     Series::new(
                         format!("q{j}"),

@@ -1,9 +1,9 @@
 //! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9), D12).
 //!
-//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera mount), the camera
-//! intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target seen
-//! from the camera there: the target is placed so that this pose is reachable), the start configuration, the tasks
-//! (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.
+//! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera link or mount), the
+//! camera intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target
+//! seen from the camera there: the target is placed so that this pose is reachable), the start configuration, the
+//! tasks (gains and interaction source), the avoidance, the controller thresholds and the simulation period and budget.
 //! Field names carry their units (`translation_m`, `rpy_deg`); unknown fields are errors, so a value written in the
 //! wrong unit under the wrong name is caught, and every semantic error names its field.
 //!
@@ -12,7 +12,8 @@
 //! ```toml
 //! [[obstacles]]                       # a world obstacle, pose in the robot base frame
 //! name = "post"
-//! shape = { sphere = { radius_m = 0.05 } }   # or box = { size_m = [..] }, cylinder/capsule = { radius_m, length_m }
+//! shape = { sphere = { radius_m = 0.05 } }   # or box = { size_m = [..] }, cylinder/capsule = { radius_m, length_m },
+//!                                     # convex_hull = { points_m = [[x, y, z], ...] }
 //! pose = { translation_m = [0.1, 0.2, 0.3], rpy_deg = [0.0, 0.0, 0.0] }
 //! influence_distance_m = 0.1          # the cost is zero farther than this
 //! links = ["afma6_camera", "afma6_end_effector"]   # links (with URDF <collision> shapes) kept away from it
@@ -37,7 +38,9 @@
 //! # Ok::<(), servostack::scenario::ScenarioError>(())
 //! ```
 
-use crate::avoidance::{Geometry, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
+use crate::avoidance::{
+    CostError, Geometry, LinkColliders, MeshPaths, Obstacle, ObstacleCost, ObstaclePair,
+};
 use crate::bounds::{ANGLE_RAD, LENGTH_M};
 use crate::camera::ImagePoint;
 use crate::camera::{CameraError, CameraIntrinsics, EyeInHand};
@@ -59,6 +62,7 @@ use crate::task::TaskError;
 use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask, VisualTask};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod text_bounds;
@@ -196,9 +200,11 @@ impl PoseSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointLimitsSpec {
-    /// `q^min` (m or rad per joint, as the chain), `N` finite values.
+    /// `q^min` (m or rad per joint, as the chain), `N` values: finite, or `-inf` for a continuous joint left
+    /// unlimited.
     pub lower: Vec<f64>,
-    /// `q^max` (m or rad per joint), `N` finite values, each above its `lower`.
+    /// `q^max` (m or rad per joint), `N` values, each above its `lower`: finite, or `inf` for a continuous joint left
+    /// unlimited. Finite limits on a continuous joint are soft limits the joint-limit cost keeps it within.
     pub upper: Vec<f64>,
 }
 
@@ -214,7 +220,7 @@ pub enum RobotSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         joint_limits: Option<JointLimitsSpec>,
     },
-    /// A chain of a URDF file (path relative to the scenario file) with a camera mount on the tip link.
+    /// A chain of a URDF file (path relative to the scenario file) with a camera on the tip link.
     Urdf {
         /// The URDF file.
         urdf: PathBuf,
@@ -222,8 +228,19 @@ pub enum RobotSpec {
         base_link: String,
         /// The tip (end-effector) link.
         tip_link: String,
-        /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`).
-        camera_mount: PoseSpec,
+        /// The camera frame as a link of the URDF (z forward, x right, y down), rigidly attached to the tip link by
+        /// fixed joints; `camera_mount`, if given, is then an extra offset of the camera in that link's frame.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        camera_link: Option<String>,
+        /// The camera pose in the tip frame (`e_from_c`, ViSP `eMc`), or in the `camera_link` frame when that is
+        /// given (default there: the identity). Required without `camera_link`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        camera_mount: Option<PoseSpec>,
+        /// Where `package://NAME/…` mesh URIs of the URDF's collision geometry lead: package name → directory
+        /// (relative to the scenario file). Searched before `ROS_PACKAGE_PATH`; relative mesh paths are resolved
+        /// against the URDF file's directory.
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        packages: BTreeMap<String, PathBuf>,
         /// Joint limits replacing the URDF's (default: the URDF's own).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         joint_limits: Option<JointLimitsSpec>,
@@ -447,6 +464,48 @@ impl RunKind {
     }
 }
 
+/// The joint counts [`with_joint_count`] dispatches to: `1..=MAX_JOINTS`.
+pub const MAX_JOINTS: usize = 12;
+
+/// Work generic in the joint count `N`, for [`with_joint_count`]: a runner's body, written once for every `N`.
+pub trait ForJointCount {
+    /// What the work returns.
+    type Output;
+    /// Does the work for a robot of `N` joints.
+    fn call<const N: usize>(self) -> Self::Output;
+}
+
+/// Calls `work.call::<N>()` with `N = joints`, a count known only at run time (read from a scenario's robot with
+/// [`Scenario::joint_count`]), for any `N` in `1..=`[`MAX_JOINTS`].
+///
+/// # Errors
+/// [`ScenarioError::Invalid`] naming `robot` for a joint count outside that range.
+pub fn with_joint_count<W: ForJointCount>(
+    joints: usize,
+    work: W,
+) -> Result<W::Output, ScenarioError> {
+    Ok(match joints {
+        1 => work.call::<1>(),
+        2 => work.call::<2>(),
+        3 => work.call::<3>(),
+        4 => work.call::<4>(),
+        5 => work.call::<5>(),
+        6 => work.call::<6>(),
+        7 => work.call::<7>(),
+        8 => work.call::<8>(),
+        9 => work.call::<9>(),
+        10 => work.call::<10>(),
+        11 => work.call::<11>(),
+        12 => work.call::<12>(),
+        _ => {
+            return Err(invalid(
+                "robot",
+                format!("the chain has {joints} joints: the runners handle 1 to {MAX_JOINTS}"),
+            ))
+        }
+    })
+}
+
 /// A scenario turned into models: the scene and what the runs need.
 #[derive(Debug, Clone)]
 pub struct Experiment<const N: usize> {
@@ -527,7 +586,10 @@ impl Scenario {
             self.avoidance.activation_ratio,
         )
         .map_err(|e| match e {
-            SimError::Cost(cost) => invalid("avoidance.activation_ratio", cost.to_string()),
+            SimError::Cost(cost @ CostError::InvalidActivationRatio { .. }) => {
+                invalid("avoidance.activation_ratio", cost.to_string())
+            }
+            SimError::Cost(cost) => invalid("robot.joint_limits", cost.to_string()),
             other => other.into(),
         })?;
         let mut scene = scene;
@@ -569,19 +631,37 @@ impl Scenario {
         &self,
         chain: SerialChain<N>,
     ) -> Result<ObstacleCost<N>, ScenarioError> {
-        let urdf = match &self.robot {
-            RobotSpec::Builtin { builtin, .. } => builtin::urdf_by_name(builtin)?.to_owned(),
-            RobotSpec::Urdf { urdf, .. } => crate::robot::read_urdf_file(&self.resolve(urdf))?,
+        let (urdf, meshes) = match &self.robot {
+            RobotSpec::Builtin { builtin, .. } => (
+                builtin::urdf_by_name(builtin)?.to_owned(),
+                MeshPaths::new(""),
+            ),
+            RobotSpec::Urdf { urdf, packages, .. } => {
+                let path = self.resolve(urdf);
+                let xml = crate::robot::read_urdf_file(&path)?;
+                let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+                let meshes =
+                    packages
+                        .iter()
+                        .fold(MeshPaths::new(dir), |meshes, (name, package_dir)| {
+                            meshes.with_package(name, self.resolve(package_dir))
+                        });
+                (xml, meshes)
+            }
         };
-        let links = LinkColliders::from_urdf_str(&urdf, &chain)
-            .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
+        let links = LinkColliders::from_urdf_robot_with_meshes(
+            &crate::robot::parse_urdf(&urdf)?,
+            &chain,
+            &meshes,
+        )
+        .map_err(|e| invalid("robot (collision geometry)", e.to_string()))?;
         let mut obstacles = Vec::with_capacity(self.obstacles.len());
         let mut pairs = Vec::new();
         for (i, spec) in self.obstacles.iter().enumerate() {
             let field = |name: &str| format!("obstacles[{i}].{name}");
             let pose = spec.pose.to_isometry(&field("pose"))?;
             obstacles.push(
-                Obstacle::new(&spec.name, spec.shape, pose)
+                Obstacle::new(&spec.name, spec.shape.clone(), pose)
                     .map_err(|e| invalid(&field("shape"), e.to_string()))?,
             );
             for link in &spec.links {
@@ -598,7 +678,7 @@ impl Scenario {
                     std::slice::from_ref(&pair),
                 )
                 .map_err(|e| match e {
-                    crate::avoidance::CostError::InvalidInfluenceDistance { .. } => {
+                    CostError::InvalidInfluenceDistance { .. } => {
                         invalid(&field("influence_distance_m"), e.to_string())
                     }
                     _ => invalid(&field("links"), e.to_string()),
@@ -614,6 +694,19 @@ impl Scenario {
         match &self.base_dir {
             Some(dir) if path.is_relative() => dir.join(path),
             _ => path.to_path_buf(),
+        }
+    }
+
+    /// The number of independent joints of the scenario's robot (its chain from base to tip), for
+    /// [`with_joint_count`].
+    ///
+    /// # Errors
+    /// As [`Scenario::robot_model`], except a joint count.
+    pub fn joint_count(&self) -> Result<usize, ScenarioError> {
+        match self.robot_model::<0>() {
+            Ok(_) => Ok(0),
+            Err(ScenarioError::Robot(RobotError::JointCount { found, .. })) => Ok(found),
+            Err(error) => Err(error),
         }
     }
 
@@ -637,20 +730,49 @@ impl Scenario {
                 urdf,
                 base_link,
                 tip_link,
+                camera_link,
                 camera_mount,
                 joint_limits,
+                ..
             } => {
-                let path = self.resolve(urdf);
-                let chain = SerialChain::from_urdf_file(&path, base_link, tip_link)?;
-                let mount = camera_mount.to_isometry("robot.camera_mount")?;
+                let xml = crate::robot::read_urdf_file(&self.resolve(urdf))?;
+                let robot = crate::robot::parse_urdf(&xml)?;
+                let chain = SerialChain::from_urdf_robot(&robot, base_link, tip_link)?;
+                let offset = match camera_mount {
+                    Some(pose) => Some(pose.to_isometry("robot.camera_mount")?),
+                    None => None,
+                };
+                let mount = match (camera_link, offset) {
+                    (Some(link), offset) => {
+                        let tip_from_link =
+                            SerialChain::<0>::from_urdf_robot(&robot, tip_link, link)
+                                .map_err(|e| {
+                                    invalid(
+                                        "robot.camera_link",
+                                        format!(
+                                            "{link:?} must hang from the tip link {tip_link:?} by fixed joints: {e}"
+                                        ),
+                                    )
+                                })?;
+                        tip_from_link.segment_from_tip() * offset.unwrap_or_else(Isometry3::identity)
+                    }
+                    (None, Some(mount)) => mount,
+                    (None, None) => {
+                        return Err(invalid(
+                            "robot.camera_mount",
+                            "give the camera as robot.camera_link (a URDF link) or robot.camera_mount (its pose \
+                             in the tip frame)",
+                        ))
+                    }
+                };
                 (chain, EyeInHand::new(mount)?, joint_limits)
             }
         };
         let Some(limits) = limits else {
             return Ok((chain, camera));
         };
-        let lower = joints::<N>("robot.joint_limits.lower", &limits.lower)?;
-        let upper = joints::<N>("robot.joint_limits.upper", &limits.upper)?;
+        let lower = limit_values::<N>("robot.joint_limits.lower", &limits.lower)?;
+        let upper = limit_values::<N>("robot.joint_limits.upper", &limits.upper)?;
         if let Some(i) = (0..N).find(|&i| lower[i] >= upper[i]) {
             return Err(invalid(
                 "robot.joint_limits.upper",
@@ -844,6 +966,29 @@ fn joints<const N: usize>(field: &str, values: &[f64]) -> Result<JointVector<N>,
     }
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
         return Err(invalid(field, format!("value {i} is not finite")));
+    }
+    Ok(JointVector::from_column_slice(values))
+}
+
+/// `N` joint limits: any value but NaN (`±inf` leaves a continuous joint unlimited; the chain checks which joints
+/// may be).
+fn limit_values<const N: usize>(
+    field: &str,
+    values: &[f64],
+) -> Result<JointVector<N>, ScenarioError> {
+    if values.len() != N {
+        return Err(invalid(
+            field,
+            format!("{} values for a robot with {N} joints", values.len()),
+        ));
+    }
+    if let Some(i) = values.iter().position(|v| v.is_nan()) {
+        return Err(invalid(
+            field,
+            format!(
+                "value {i} is NaN, not finite (only ±inf, for a continuous joint left unlimited)"
+            ),
+        ));
     }
     Ok(JointVector::from_column_slice(values))
 }

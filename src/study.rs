@@ -93,7 +93,8 @@ pub enum Perturbation {
         /// The largest angle (degrees).
         max_angle_deg: f64,
     },
-    /// The start drawn uniformly inside the joint limits.
+    /// The start drawn uniformly inside the joint limits; an unlimited (continuous) joint is drawn uniformly in
+    /// `[−π, π]`, one full turn.
     Uniform,
 }
 
@@ -676,7 +677,10 @@ impl Perturbation {
             }
             Self::Uniform => {
                 for (i, value) in drawn.start.joints.iter_mut().enumerate() {
-                    let (low, high) = (chain.lower_limits()[i], chain.upper_limits()[i]);
+                    let (low, high) = match (chain.lower_limits()[i], chain.upper_limits()[i]) {
+                        (low, high) if low.is_finite() && high.is_finite() => (low, high),
+                        _ => (-std::f64::consts::PI, std::f64::consts::PI),
+                    };
                     *value = rng.random_range(low..=high);
                 }
             }

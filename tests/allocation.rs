@@ -190,3 +190,28 @@ fn kinematics_camera_and_projection_allocate_nothing() {
     assert_eq!(allocations, 0);
     assert!(checksum.is_finite());
 }
+
+/// The same with a mimic joint (the Afma6 with its coupling): the mimic terms of the Jacobians and of a point
+/// Jacobian beyond the mimic joint allocate nothing either.
+#[test]
+fn kinematics_with_a_mimic_joint_allocate_nothing() {
+    let robot = builtin::afma6_coupled().unwrap();
+    let mut ws = KinematicsWorkspace::new();
+    let mut point_jacobian = SMatrix::<f64, 3, 6>::zeros();
+    let link = robot.chain.link("afma6_end_effector").unwrap().clone();
+    assert!(!link.mimics().is_empty());
+    let mut checksum = 0.0;
+    let allocations = allocations_during(|| {
+        for k in 0..100 {
+            let q = JointVector::<6>::from_element(0.01 * k as f64);
+            let state = robot.chain.kinematics(&mut ws, &q).unwrap();
+            let pose = state.base_from_link(&link).unwrap();
+            state
+                .point_jacobian(&link, &Point3::new(0.1, 0.2, 0.3), &mut point_jacobian)
+                .unwrap();
+            checksum += state.tip_jacobian()[(5, 4)] + point_jacobian[(0, 4)] + pose.translation.x;
+        }
+    });
+    assert_eq!(allocations, 0);
+    assert!(checksum.is_finite());
+}

@@ -1,6 +1,6 @@
 //! The obstacle scenario of the `obstacle_avoidance` example (assets/scenarios/obstacle_afma6.toml): the classical law
 //! and the stack with projected gradient collide, the full method reaches the goal without collision and without
-//! losing the target; scenario errors name their field.
+//! losing the target, also when the links' shapes are STL meshes; scenario errors name their field.
 
 use servostack::controller::EventKind;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
@@ -14,7 +14,24 @@ fn scenario() -> Scenario {
 
 #[test]
 fn classical_and_stack_gradient_collide_the_full_method_avoids() {
-    let scenario = scenario();
+    obstacle_story(&scenario());
+}
+
+/// The same story on the gantry whose link shapes are STL meshes (binary and ASCII), read as convex hulls.
+#[test]
+fn the_story_holds_with_stl_mesh_link_geometry() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/scenarios/obstacle_mesh_afma6.toml"
+    );
+    let scenario = Scenario::from_file(std::path::Path::new(path)).unwrap();
+    assert_eq!(scenario.joint_count().unwrap(), 6);
+    obstacle_story(&scenario);
+}
+
+/// Classical and stack-with-gradient runs collide with the ball; the full method converges without collision, the
+/// target in the image, its removals triggered by the obstacle cost and undone.
+fn obstacle_story(scenario: &Scenario) {
     let experiment = scenario.experiment::<6>().unwrap();
     for kind in [RunKind::Classical, RunKind::StackGradient] {
         let run = scenario.run_experiment(&experiment, kind).unwrap();

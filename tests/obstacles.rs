@@ -287,16 +287,15 @@ fn composite_of_limits_obstacles_and_visibility() {
 #[test]
 fn bad_input_is_a_clear_error() {
     let chain = slider();
+    // A mesh format without a reader (PLY) names the link and the file (refused before the file is read).
     let mesh_urdf = SLIDER.replace(
         r#"<sphere radius="0.1"/>"#,
-        r#"<mesh filename="package://cart.stl"/>"#,
+        r#"<mesh filename="cart.ply"/>"#,
     );
-    assert_eq!(
-        LinkColliders::from_urdf_str(&mesh_urdf, &chain),
-        Err(CostError::UnsupportedGeometry {
-            link: "cart".into(),
-            geometry: "mesh \"package://cart.stl\"".into()
-        })
+    let err = LinkColliders::from_urdf_str(&mesh_urdf, &chain).unwrap_err();
+    assert!(
+        matches!(&err, CostError::UnsupportedGeometry { link, geometry } if link == "cart" && geometry.contains("cart.ply")),
+        "{err:?}"
     );
     let links = LinkColliders::from_urdf_str(SLIDER, &chain).unwrap();
     let ball = || {

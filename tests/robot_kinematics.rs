@@ -193,6 +193,33 @@ proptest! {
         }
     }
 
+    /// The Afma6 with ViSP's coupling (a mimic joint) against the peer scene's closed forms with g = 0.009091, at
+    /// random configurations: `fMe`, `eJe` and the camera twist.
+    #[test]
+    fn afma6_coupled_matches_the_coupled_closed_form(u in unit_samples(6), d in direction(6)) {
+        let robot = builtin::afma6_coupled().unwrap();
+        let q = config(&robot.chain, &u);
+        let (f_from_e, e_j_e) = afma6_closed_form(&q, 0.009091);
+        let mut ws = KinematicsWorkspace::new();
+        let state = robot.chain.kinematics(&mut ws, &q).unwrap();
+        assert_relative_eq!(state.base_from_tip().to_homogeneous(), f_from_e.to_homogeneous(), epsilon = 1e-12);
+        assert_relative_eq!(*state.tip_jacobian(), e_j_e, epsilon = 1e-12);
+        check_jacobians(&robot.chain, &q);
+        check_camera_twist(&robot, &q, &JointVector::from_column_slice(&d));
+    }
+
+    /// Point Jacobians of links beyond a mimic joint (the coupled Afma6's end effector and camera) against finite
+    /// differences.
+    #[test]
+    fn point_jacobians_beyond_a_mimic_joint_match_finite_differences(
+        u in unit_samples(6),
+        p in proptest::collection::vec(-0.3..0.3f64, 3),
+    ) {
+        let chain = builtin::afma6_coupled().unwrap().chain;
+        assert!(!chain.link("afma6_end_effector").unwrap().mimics().is_empty());
+        check_point_jacobians(&chain, &config(&chain, &u), &Point3::new(p[0], p[1], p[2]));
+    }
+
     /// The UR5e against the product of its standard DH transforms.
     #[test]
     fn ur5e_matches_the_dh_product(u in unit_samples(6)) {
@@ -465,4 +492,68 @@ fn a_link_of_a_longer_chain_is_rejected_by_link_queries() {
             .unwrap_err(),
         err
     );
+}
+
+/// Mimic joints of both kinds after the independent ones, one mimicking the other: the multipliers and offsets
+/// compose (θ_m2 = 3 (0.5 q1 + 0.01) + 0.2 = 1.5 q1 + 0.23), and the Jacobians, tip and point, match finite
+/// differences of the forward kinematics.
+#[test]
+fn chained_mimic_joints_of_both_kinds_match_finite_differences() {
+    let xml = r#"<robot name="fingers">
+      <link name="base"/><link name="l1"/><link name="l2"/><link name="f1"/><link name="f2"/><link name="tip"/>
+      <joint name="j0" type="revolute"><parent link="base"/><child link="l1"/>
+        <origin xyz="0 0 0.3" rpy="0.1 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="0" velocity="1"/></joint>
+      <joint name="j1" type="prismatic"><parent link="l1"/><child link="l2"/>
+        <origin xyz="0.2 0 0" rpy="0 0.3 0"/><axis xyz="1 0 0"/><limit lower="-0.1" upper="0.1" effort="0" velocity="1"/></joint>
+      <joint name="m1" type="prismatic"><parent link="l2"/><child link="f1"/>
+        <origin xyz="0 0.05 0" rpy="0 0 0.4"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="0" velocity="1"/>
+        <mimic joint="j1" multiplier="0.5" offset="0.01"/></joint>
+      <joint name="m2" type="revolute"><parent link="f1"/><child link="f2"/>
+        <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="1 1 0"/><limit lower="-1" upper="1" effort="0" velocity="1"/>
+        <mimic joint="m1" multiplier="3" offset="0.2"/></joint>
+      <joint name="tool" type="fixed"><parent link="f2"/><child link="tip"/><origin xyz="0.03 0 0.02" rpy="0 0 0"/></joint>
+    </robot>"#;
+    let chain = SerialChain::<2>::from_urdf_str(xml, "base", "tip").unwrap();
+    let mimics = chain.mimic_joints();
+    assert_eq!(
+        (
+            mimics[0].leader(),
+            mimics[0].multiplier(),
+            mimics[0].offset()
+        ),
+        (1, 0.5, 0.01)
+    );
+    assert_eq!(mimics[1].leader(), 1);
+    assert_relative_eq!(mimics[1].multiplier(), 1.5, epsilon = 1e-15);
+    assert_relative_eq!(mimics[1].offset(), 0.23, epsilon = 1e-15);
+    // The tip pose by hand at q = (0, 0.02): j1 slides 0.02 along its x axis, m1 0.02 along its y axis, m2 turns
+    // 0.26 rad about (1,1,0)/√2.
+    let q = JointVector::<2>::new(0.0, 0.02);
+    let base_from_l2 = Isometry3::new(Vector3::new(0.0, 0.0, 0.3), Vector3::new(0.1, 0.0, 0.0))
+        * Isometry3::new(Vector3::new(0.2, 0.0, 0.0), Vector3::new(0.0, 0.3, 0.0))
+        * Translation3::new(0.02, 0.0, 0.0);
+    let l2_from_f1 = Isometry3::from_parts(
+        Translation3::new(0.0, 0.05, 0.0),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.4),
+    ) * Translation3::new(0.0, 0.02, 0.0);
+    let f1_from_f2 = Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.1),
+        UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Vector3::new(1.0, 1.0, 0.0)),
+            0.26,
+        ),
+    );
+    let expected = base_from_l2 * l2_from_f1 * f1_from_f2 * Translation3::new(0.03, 0.0, 0.02);
+    assert_relative_eq!(
+        fk(&chain, &q).to_homogeneous(),
+        expected.to_homogeneous(),
+        epsilon = 1e-12
+    );
+    for q in [
+        JointVector::<2>::new(0.7, -0.05),
+        JointVector::<2>::new(-1.3, 0.08),
+    ] {
+        check_jacobians(&chain, &q);
+        check_point_jacobians(&chain, &q, &Point3::new(0.01, -0.02, 0.03));
+    }
 }

@@ -130,16 +130,148 @@ fn floating_planar_and_spherical_joints_on_the_path() {
     assert!(SerialChain::<1>::from_urdf_str(&xml, "a", "b").is_ok());
 }
 
+/// A mimic joint on the path is no coordinate of the chain: two joints, one independent.
 #[test]
-fn mimic_joint_on_the_path() {
+fn mimic_joint_on_the_path_follows_its_leader() {
     let xml = two_joints(
         "revolute",
-        &format!(r#"{LIMIT}<mimic joint="j1" multiplier="2"/>"#),
+        &format!(r#"{LIMIT}<mimic joint="j1" multiplier="2" offset="0.1"/>"#),
     );
     assert_eq!(
         load::<2>(&xml, "a", "c"),
-        RobotError::MimicJoint { joint: "j2".into() }
+        RobotError::JointCount {
+            expected: 2,
+            found: 1
+        }
     );
+    let chain = SerialChain::<1>::from_urdf_str(&xml, "a", "c").unwrap();
+    let mimic = &chain.mimic_joints()[0];
+    assert_eq!(mimic.joint().name(), "j2");
+    assert_eq!(
+        (mimic.leader(), mimic.multiplier(), mimic.offset()),
+        (0, 2.0, 0.1)
+    );
+}
+
+/// a → b (j1) → c (j2, mimic of `leader`), with extra joints.
+fn mimic_of(leader: &str, extra_joints: &str) -> String {
+    urdf(&format!(
+        "{}{}{extra_joints}",
+        joint("j1", "revolute", "a", "b", LIMIT),
+        joint(
+            "j2",
+            "revolute",
+            "b",
+            "c",
+            &format!(r#"{LIMIT}<mimic joint="{leader}"/>"#)
+        ),
+    ))
+}
+
+#[test]
+fn mimic_of_an_unknown_joint() {
+    let err = load::<1>(&mimic_of("j9", ""), "a", "c");
+    assert_eq!(
+        err,
+        RobotError::MimicUnknownJoint {
+            joint: "j2".into(),
+            leader: "j9".into()
+        }
+    );
+    assert_eq!(
+        err.to_string(),
+        r#"joint "j2" mimics "j9", which is not a joint of the URDF"#
+    );
+}
+
+#[test]
+fn mimic_cycle() {
+    // j2 mimics j3 (off the path), which mimics j2.
+    let j3 = joint(
+        "j3",
+        "revolute",
+        "c",
+        "d",
+        &format!(r#"{LIMIT}<mimic joint="j2"/>"#),
+    );
+    let err = load::<1>(&mimic_of("j3", &j3), "a", "c");
+    assert_eq!(
+        err,
+        RobotError::MimicCycle {
+            joints: vec!["j2".into(), "j3".into(), "j2".into()]
+        }
+    );
+    assert_eq!(err.to_string(), "mimic joints form a cycle: j2 → j3 → j2");
+    // A joint that mimics itself.
+    assert_eq!(
+        load::<1>(&mimic_of("j2", ""), "a", "c"),
+        RobotError::MimicCycle {
+            joints: vec!["j2".into(), "j2".into()]
+        }
+    );
+}
+
+#[test]
+fn mimic_of_a_joint_off_the_path_or_fixed() {
+    let off_path = joint("j3", "revolute", "a", "d", LIMIT);
+    assert_eq!(
+        load::<1>(&mimic_of("j3", &off_path), "a", "c"),
+        RobotError::MimicLeaderNotOnPath {
+            joint: "j2".into(),
+            leader: "j3".into()
+        }
+    );
+    // j1 fixed: j2 mimics a joint that is no coordinate.
+    let xml = urdf(&format!(
+        "{}{}",
+        joint("j1", "fixed", "a", "b", ""),
+        joint(
+            "j2",
+            "revolute",
+            "b",
+            "c",
+            &format!(r#"{LIMIT}<mimic joint="j1"/>"#)
+        ),
+    ));
+    assert!(matches!(
+        load::<0>(&xml, "a", "c"),
+        RobotError::MimicLeaderNotOnPath { .. }
+    ));
+}
+
+#[test]
+fn mimic_before_an_independent_joint() {
+    let xml = urdf(&format!(
+        "{}{}{}",
+        joint("j1", "revolute", "a", "b", LIMIT),
+        joint(
+            "j2",
+            "revolute",
+            "b",
+            "c",
+            &format!(r#"{LIMIT}<mimic joint="j1"/>"#)
+        ),
+        joint("j3", "revolute", "c", "d", LIMIT),
+    ));
+    assert_eq!(
+        load::<2>(&xml, "a", "d"),
+        RobotError::MimicBeforeJoint {
+            joint: "j2".into(),
+            next: "j3".into()
+        }
+    );
+}
+
+#[test]
+fn non_finite_mimic_multiplier() {
+    let xml = two_joints(
+        "revolute",
+        &format!(r#"{LIMIT}<mimic joint="j1" multiplier="inf"/>"#),
+    );
+    assert!(matches!(
+        load::<1>(&xml, "a", "c"),
+        RobotError::NonFiniteUrdf { field: "mimic", .. }
+    ));
 }
 
 #[test]
@@ -172,9 +304,15 @@ fn missing_limits() {
         upper,
     };
     // URDF 1.0 without <limit>: urdf-rs reports lower = upper = 0.
-    assert_eq!(
-        load::<2>(&two_joints("revolute", ""), "a", "c"),
-        missing(0.0, 0.0)
+    let err = load::<2>(&two_joints("revolute", ""), "a", "c");
+    assert_eq!(err, missing(0.0, 0.0));
+    // The message says how to supply limits.
+    let message = err.to_string();
+    assert!(
+        message.contains("j2")
+            && message.contains("<limit lower=")
+            && message.contains("continuous"),
+        "{message}"
     );
     assert_eq!(
         load::<2>(&two_joints("prismatic", ""), "a", "c"),

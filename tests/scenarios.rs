@@ -229,6 +229,15 @@ fn bad_joint_limit_overrides_are_named() {
         message.contains("robot.joint_limits.upper") && message.contains("not finite"),
         "{message}"
     );
+    // ±inf leaves a continuous joint unlimited; the UR5e has none, so its revolute joint 3 is named.
+    let message = error_of(&limits(
+        "-3.0, -3.0, -3.0, -inf, -3.0, -3.0",
+        "3.0, 3.0, 3.0, inf, 3.0, 3.0",
+    ));
+    assert!(
+        message.contains("robot.joint_limits") && message.contains("must be finite"),
+        "{message}"
+    );
     // Limits that leave the start outside are caught by the start's check.
     let message = error_of(&limits(&six(-3.0), "3.0, 3.0, 1.0, 3.0, 3.0, 3.0"));
     assert!(

@@ -12,7 +12,7 @@
 //! common frame the two poses are expressed in (the robot base frame in this crate). Moving the first shape's witness
 //! point by `δp` changes `d` by `−nᵀ δp` to first order.
 //!
-//! Accuracy: parry's GJK terminates exactly on polytopes (boxes), segments and points, so distances and normals
+//! Accuracy: parry's GJK terminates exactly on polytopes (boxes, convex hulls), segments and points, so distances and normals
 //! involving spheres, boxes and capsules (queried as an inflated segment) are exact to rounding. On a cylinder's
 //! curved side GJK only converges: its normal, hence an obstacle-cost gradient, is accurate to about 1e−3 (relative).
 
@@ -20,10 +20,11 @@ use super::CostError;
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 use parry3d_f64::math::{Pose as ParryPose, Vector as ParryVector};
 use parry3d_f64::query;
-use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, SharedShape};
+use parry3d_f64::shape::{Ball, Capsule, ConvexPolyhedron, Cuboid, Cylinder, SharedShape};
 
-/// A primitive collision shape, centred on the origin of its own frame (sizes in m, all finite and > 0).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// A collision shape, in its own frame (sizes in m, all finite and > 0): a primitive centred on the origin, or the
+/// convex hull of points (a URDF mesh, [D20](crate::theory#d20)).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Geometry {
     /// A ball of radius `radius_m`.
@@ -51,12 +52,20 @@ pub enum Geometry {
         /// Length of the axis segment (m).
         length_m: f64,
     },
+    /// The convex hull of these points (m; at least three, not all on a line): a URDF `<mesh>` read by
+    /// [`crate::avoidance::LinkColliders`] holds the hull's vertices.
+    ConvexHull {
+        /// The points (m).
+        points_m: Vec<[f64; 3]>,
+    },
 }
 
 impl Geometry {
-    /// The sizes of the shape, with their names, for validation and errors.
+    /// The sizes of the shape, with their names, for validation and errors (the coordinates of a hull's points are
+    /// checked apart: any finite value).
     fn sizes(&self) -> [(&'static str, f64); 3] {
         match *self {
+            Self::ConvexHull { .. } => [("points_m", 1.0); 3],
             Self::Sphere { radius_m } => [("radius_m", radius_m); 3],
             Self::Box { size_m } => [
                 ("size_m[0]", size_m[0]),
@@ -71,11 +80,18 @@ impl Geometry {
         }
     }
 
-    /// The geometry read from a URDF `<collision>` element of `link`.
+    /// The geometry read from a URDF `<collision>` element of `link`; a `<mesh>` is read from the file `meshes`
+    /// leads to, scaled, and reduced to the vertices of its convex hull ([D20](crate::theory#d20)).
     ///
     /// # Errors
-    /// [`CostError::UnsupportedGeometry`] for a `<mesh>` (no mesh loader), then as [`Collider::new`].
-    pub(crate) fn from_urdf(link: &str, geometry: &urdf_rs::Geometry) -> Result<Self, CostError> {
+    /// For a `<mesh>`: [`CostError::UnknownPackage`], [`CostError::MeshFile`], [`CostError::MalformedMesh`],
+    /// [`CostError::UnsupportedGeometry`] (a format other than STL, OBJ and COLLADA), [`CostError::InvalidGeometry`] (a
+    /// non-finite or zero scale), [`CostError::DegenerateConvexHull`] (a mesh with all its vertices on a line).
+    pub(crate) fn from_urdf(
+        link: &str,
+        geometry: &urdf_rs::Geometry,
+        meshes: &super::MeshPaths,
+    ) -> Result<Self, CostError> {
         Ok(match geometry {
             urdf_rs::Geometry::Box { size } => Self::Box { size_m: **size },
             urdf_rs::Geometry::Cylinder { radius, length } => Self::Cylinder {
@@ -87,14 +103,53 @@ impl Geometry {
                 length_m: *length,
             },
             urdf_rs::Geometry::Sphere { radius } => Self::Sphere { radius_m: *radius },
-            urdf_rs::Geometry::Mesh { filename, .. } => {
-                return Err(CostError::UnsupportedGeometry {
-                    link: link.to_owned(),
-                    geometry: format!("mesh {filename:?}"),
-                })
+            urdf_rs::Geometry::Mesh { filename, scale } => {
+                let scale = scale.map_or(Vector3::repeat(1.0), |s| Vector3::from(*s));
+                if let Some(&value) = scale.iter().find(|v| !(v.is_finite() && **v != 0.0)) {
+                    return Err(CostError::InvalidGeometry {
+                        owner: link.to_owned(),
+                        field: "mesh scale",
+                        value,
+                    });
+                }
+                let path = meshes.resolve(link, filename)?;
+                let vertices = super::mesh::read_vertices(link, &path, scale)?;
+                let hull =
+                    convex_hull(&vertices).ok_or_else(|| CostError::DegenerateConvexHull {
+                        owner: link.to_owned(),
+                        points: vertices.len(),
+                    })?;
+                Self::ConvexHull {
+                    points_m: hull.points().iter().map(|p| [p.x, p.y, p.z]).collect(),
+                }
             }
         })
     }
+}
+
+/// The convex hull of a [`Geometry::ConvexHull`]'s points, checked.
+///
+/// # Errors
+/// [`CostError::InvalidGeometry`] for a non-finite coordinate, [`CostError::DegenerateConvexHull`].
+fn hull_of_points(owner: &str, points_m: &[[f64; 3]]) -> Result<ConvexPolyhedron, CostError> {
+    if let Some(&value) = points_m.iter().flatten().find(|v| !v.is_finite()) {
+        return Err(CostError::InvalidGeometry {
+            owner: owner.to_owned(),
+            field: "points_m",
+            value,
+        });
+    }
+    let points: Vec<Vector3<f64>> = points_m.iter().map(|&p| p.into()).collect();
+    convex_hull(&points).ok_or_else(|| CostError::DegenerateConvexHull {
+        owner: owner.to_owned(),
+        points: points.len(),
+    })
+}
+
+/// parry's convex hull of `points`, `None` when parry builds none (too few points, all on a line).
+fn convex_hull(points: &[Vector3<f64>]) -> Option<ConvexPolyhedron> {
+    let points: Vec<ParryVector> = points.iter().map(to_parry_vector).collect();
+    ConvexPolyhedron::from_convex_hull(&points)
 }
 
 /// A [`Geometry`] placed in a frame: the shape's pose `frame_from_shape` in the frame that carries it (a link frame,
@@ -176,6 +231,10 @@ impl Collider {
                 SharedShape::new(Capsule::new_z(0.5 * length_m, 0.0).segment),
                 identity(),
             ),
+            Geometry::ConvexHull { ref points_m } => (
+                SharedShape::new(hull_of_points(owner, points_m)?),
+                identity(),
+            ),
         };
         let inflation = match geometry {
             Geometry::Capsule { radius_m, .. } => radius_m,
@@ -186,6 +245,10 @@ impl Collider {
             Geometry::Box { size_m } => 0.5 * Vector3::from(size_m).norm(),
             Geometry::Cylinder { radius_m, length_m } => radius_m.hypot(0.5 * length_m),
             Geometry::Capsule { radius_m, length_m } => radius_m + 0.5 * length_m,
+            Geometry::ConvexHull { ref points_m } => points_m
+                .iter()
+                .map(|&p| Vector3::from(p).norm())
+                .fold(0.0, f64::max),
         };
         Ok(Self {
             geometry,
@@ -259,8 +322,8 @@ pub fn proximity(
         cutoff + inflation,
     )
     .map_err(|_| CostError::UnsupportedShapePair {
-        first: first.geometry,
-        second: second.geometry,
+        first: first.geometry.clone(),
+        second: second.geometry.clone(),
     })?;
     Ok(contact.and_then(|c| {
         let normal = Unit::try_new(from_parry_vector(&c.normal1), 1e-12)?;
@@ -287,8 +350,8 @@ pub fn signed_distance(
     base_from_second: &Isometry3<f64>,
 ) -> Result<f64, CostError> {
     let unsupported = |_| CostError::UnsupportedShapePair {
-        first: first.geometry,
-        second: second.geometry,
+        first: first.geometry.clone(),
+        second: second.geometry.clone(),
     };
     let (pose1, pose2) = (
         first.parry_pose(base_from_first),
@@ -467,16 +530,98 @@ mod tests {
                 ..
             })
         ));
+        // Points on a line, or none, make no polyhedron.
+        for points_m in [
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
+            vec![],
+        ] {
+            let points = points_m.len();
+            assert_eq!(
+                Collider::new("rod", Geometry::ConvexHull { points_m }, identity()),
+                Err(CostError::DegenerateConvexHull {
+                    owner: "rod".into(),
+                    points
+                })
+            );
+        }
+        let nan = Geometry::ConvexHull {
+            points_m: vec![[0.0, f64::NAN, 0.0]],
+        };
+        assert!(matches!(
+            Collider::new("plate", nan, identity()),
+            Err(CostError::InvalidGeometry {
+                field: "points_m",
+                ..
+            })
+        ));
+        // A zero mesh scale.
         let mesh = urdf_rs::Geometry::Mesh {
             filename: "arm.stl".into(),
-            scale: None,
+            scale: Some(urdf_rs::Vec3([1.0, 0.0, 1.0])),
         };
-        assert_eq!(
-            Geometry::from_urdf("wrist", &mesh),
-            Err(CostError::UnsupportedGeometry {
-                link: "wrist".into(),
-                geometry: "mesh \"arm.stl\"".into()
-            })
+        assert!(matches!(
+            Geometry::from_urdf("wrist", &mesh, &super::super::MeshPaths::new("")),
+            Err(CostError::InvalidGeometry { field: "mesh scale", value, .. }) if value == 0.0
+        ));
+    }
+
+    /// A convex hull's distances by hand: a unit tetrahedron (0, e_x, e_y, e_z) and a ball on the x axis, and the
+    /// hull of a cube's corners plus interior points against the equivalent box.
+    #[test]
+    fn convex_hull_distances_by_hand() {
+        let tetra = Collider::new(
+            "t",
+            Geometry::ConvexHull {
+                points_m: vec![
+                    [0.0, 0.0, 0.0],
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [0.0, 0.0, 1.0],
+                ],
+            },
+            identity(),
+        )
+        .unwrap();
+        let ball = Collider::new("b", Geometry::Sphere { radius_m: 0.1 }, identity()).unwrap();
+        let at = |x, y, z| Isometry3::translation(x, y, z);
+        // Ball centre at (-0.5, 0.2, 0.2): nearest hull point is on the face x = 0, distance 0.5 − 0.1.
+        let p = proximity(&tetra, &at(0.0, 0.0, 0.0), &ball, &at(-0.5, 0.2, 0.2), 1.0)
+            .unwrap()
+            .unwrap();
+        assert_relative_eq!(p.distance, 0.4, epsilon = 1e-12);
+        assert_relative_eq!(p.normal.into_inner(), -Vector3::x(), epsilon = 1e-12);
+        // Beyond the slanted face x + y + z = 1: centre at (1,1,1), distance (3 − 1)/√3 − 0.1.
+        assert_relative_eq!(
+            signed_distance(&tetra, &at(0.0, 0.0, 0.0), &ball, &at(1.0, 1.0, 1.0)).unwrap(),
+            2.0 / 3f64.sqrt() - 0.1,
+            epsilon = 1e-9
         );
+        let mut corners: Vec<[f64; 3]> = (0..8)
+            .map(|i| {
+                [
+                    0.1 * (i & 1) as f64,
+                    0.2 * ((i >> 1) & 1) as f64,
+                    0.3 * (i >> 2) as f64,
+                ]
+            })
+            .collect();
+        corners.push([0.05, 0.1, 0.15]); // inside: not a vertex of the hull
+        let hull =
+            Collider::new("h", Geometry::ConvexHull { points_m: corners }, identity()).unwrap();
+        let cube = Collider::new(
+            "c",
+            Geometry::Box {
+                size_m: [0.1, 0.2, 0.3],
+            },
+            at(0.05, 0.1, 0.15),
+        )
+        .unwrap();
+        for centre in [at(0.4, 0.1, 0.1), at(-0.2, -0.3, 0.5), at(0.05, 0.1, 0.6)] {
+            assert_relative_eq!(
+                signed_distance(&hull, &identity(), &ball, &centre).unwrap(),
+                signed_distance(&cube, &identity(), &ball, &centre).unwrap(),
+                epsilon = 1e-9
+            );
+        }
     }
 }

@@ -11,6 +11,11 @@
 //! `h` is zero, with zero gradient, inside the acceptable box `[q̃^min, q̃^max]`, and continuously differentiable
 //! everywhere. Units: `δ_i` and `Δq_i` are in the joint's unit (m or rad), so `h` is in m or rad per joint term and `∇h`
 //! is dimensionless; the avoidance gain `κ` carries the unit 1/s.
+//!
+//! An **unlimited** joint (limits `−∞` and `+∞`, a URDF continuous joint) has no activation band: its term of `h` and
+//! its entry of `∇h` are zero, it never violates its limits, and its angle is used as it is, never wrapped
+//! ([D18](crate::theory#d18)). Soft limits for such a joint are finite limits given in its place
+//! ([`crate::robot::SerialChain::with_limits`], a scenario's `robot.joint_limits`).
 
 use super::{checked_cost, dead_band, Cost, CostError};
 use crate::bounds::JOINT_POSITION;
@@ -28,18 +33,22 @@ impl<const N: usize> JointLimits<N> {
     /// The activation ratio of the paper and of ViSP's 2005 Afma6 model ([theory §5](crate::theory#s5)).
     pub const DEFAULT_ACTIVATION_RATIO: f64 = 0.1;
 
-    /// Limits `lower < upper` (m or rad per joint, within [`JOINT_POSITION`]) with activation ratio `rho ∈ (0, 1/2)`.
+    /// Limits `lower < upper` (m or rad per joint, within [`JOINT_POSITION`]), or `lower = −∞`, `upper = +∞` for an
+    /// unlimited joint, with activation ratio `rho ∈ (0, 1/2)`.
     ///
     /// # Errors
-    /// [`CostError::InvalidLimits`] for a non-finite, out-of-range or unordered pair,
-    /// [`CostError::InvalidActivationRatio`].
+    /// [`CostError::InvalidLimits`] for a pair that is neither finite, within range and ordered nor `(−∞, +∞)` (a NaN,
+    /// one infinite bound, a bound beyond the range), [`CostError::InvalidActivationRatio`].
     pub fn new(lower: JointVector<N>, upper: JointVector<N>, rho: f64) -> Result<Self, CostError> {
         if !(rho.is_finite() && rho > 0.0 && rho < 0.5) {
             return Err(CostError::InvalidActivationRatio { rho });
         }
         for joint in 0..N {
             let (lo, hi) = (lower[joint], upper[joint]);
-            if !(JOINT_POSITION.contains(lo) && JOINT_POSITION.contains(hi) && lo < hi) {
+            let unlimited = lo == f64::NEG_INFINITY && hi == f64::INFINITY;
+            if !(unlimited
+                || (JOINT_POSITION.contains(lo) && JOINT_POSITION.contains(hi) && lo < hi))
+            {
                 return Err(CostError::InvalidLimits {
                     joint,
                     lower: lo,
@@ -65,31 +74,56 @@ impl<const N: usize> JointLimits<N> {
         self.rho
     }
 
-    /// The range `Δq_i = q_i^max − q_i^min` of joint `i`.
+    /// `true` when joint `i` is unlimited (limits `−∞`, `+∞`): it has no term in `h` ([D18](crate::theory#d18)).
+    pub fn is_unlimited(&self, joint: usize) -> bool {
+        self.lower[joint] == f64::NEG_INFINITY
+    }
+
+    /// The range `Δq_i = q_i^max − q_i^min` of joint `i` (`+∞` for an unlimited joint).
     fn range(&self, joint: usize) -> f64 {
         self.upper[joint] - self.lower[joint]
     }
 
-    /// The activation thresholds `(q̃^min, q̃^max)` of [\[M19\]](crate::theory#m19).
+    /// The activation thresholds `(q̃^min, q̃^max)` of [\[M19\]](crate::theory#m19); `(−∞, +∞)` for an unlimited
+    /// joint.
     pub fn activation_thresholds(&self) -> (JointVector<N>, JointVector<N>) {
-        let band = (self.upper - self.lower) * self.rho;
-        (self.lower + band, self.upper - band)
+        let threshold = |i: usize, side: f64| {
+            let (lower, upper) = (self.lower[i], self.upper[i]);
+            if self.is_unlimited(i) {
+                side * f64::INFINITY
+            } else if side < 0.0 {
+                lower + self.rho * (upper - lower)
+            } else {
+                upper - self.rho * (upper - lower)
+            }
+        };
+        (
+            JointVector::from_fn(|i, _| threshold(i, -1.0)),
+            JointVector::from_fn(|i, _| threshold(i, 1.0)),
+        )
     }
 
-    /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the acceptable box).
+    /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the
+    /// acceptable box, always 0 for an unlimited joint).
     fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
+        if self.is_unlimited(joint) {
+            return 0.0;
+        }
         let band = self.rho * self.range(joint);
         dead_band(q[joint], self.lower[joint] + band, self.upper[joint] - band)
     }
 
     /// The value of `h` when one joint, `joint`, has gone half-way through its activation band and every other joint is
     /// in the acceptable box: `½ (ρΔq/2)² / Δq = ρ² Δq / 8`. The stack controller's default `h_max` is the smallest of
-    /// these over the joints ([D6](crate::theory#d6)). `None` for a joint index `≥ N`.
+    /// these over the joints ([D6](crate::theory#d6)). `None` for a joint index `≥ N` and for an unlimited joint (no
+    /// band).
     pub fn half_band_cost(&self, joint: usize) -> Option<f64> {
-        (joint < N).then(|| self.rho * self.rho * self.range(joint) / 8.0)
+        (joint < N && !self.is_unlimited(joint))
+            .then(|| self.rho * self.rho * self.range(joint) / 8.0)
     }
 
-    /// The default removal threshold `h_max` of [D6](crate::theory#d6): the smallest [`Self::half_band_cost`] over the joints.
+    /// The default removal threshold `h_max` of [D6](crate::theory#d6): the smallest [`Self::half_band_cost`] over the
+    /// limited joints (`+∞` when every joint is unlimited: `h` is then always 0).
     pub fn default_removal_threshold(&self) -> f64 {
         (0..N)
             .filter_map(|joint| self.half_band_cost(joint))
@@ -102,12 +136,19 @@ impl<const N: usize> JointLimits<N> {
     }
 
     /// The configuration normalised per joint to `(q − q^min)/Δq`: 0 at the lower limit, 1 at the upper (the paper's
-    /// Fig. 5–7 axes).
+    /// Fig. 5–7 axes). An unlimited joint reads 0.5, as far from a limit as a joint can be.
     pub fn normalized(&self, q: &JointVector<N>) -> JointVector<N> {
-        JointVector::from_fn(|i, _| (q[i] - self.lower[i]) / self.range(i))
+        JointVector::from_fn(|i, _| {
+            if self.is_unlimited(i) {
+                0.5
+            } else {
+                (q[i] - self.lower[i]) / self.range(i)
+            }
+        })
     }
 
-    /// The smallest distance to a hard limit over the joints, divided by the joint's range (negative outside).
+    /// The smallest distance to a hard limit over the joints, divided by the joint's range (negative outside); an
+    /// unlimited joint counts as 0.5 (see [`Self::normalized`]).
     pub fn normalized_margin(&self, q: &JointVector<N>) -> f64 {
         self.normalized(q)
             .iter()
@@ -208,6 +249,51 @@ mod tests {
             let limits = limits();
             let q = JointVector::<6>::from_fn(|i, _| limits.lower()[i] + s[i] * (limits.upper()[i] - limits.lower()[i]));
             prop_assert!(gradient_error(&limits, &q, 1e-6) < 1e-8);
+        }
+    }
+
+    /// An unlimited joint (a continuous joint) adds nothing to `h` or `∇h` however far it turns, is never violated,
+    /// and leaves the limited joints' terms as they were.
+    #[test]
+    fn unlimited_joints_have_no_term() {
+        let inf = f64::INFINITY;
+        let mixed = JointLimits::new(
+            JointVector::<2>::new(-1.0, -inf),
+            JointVector::<2>::new(1.0, inf),
+            0.1,
+        )
+        .unwrap();
+        let alone =
+            JointLimits::new(JointVector::<1>::new(-1.0), JointVector::<1>::new(1.0), 0.1).unwrap();
+        assert!(mixed.is_unlimited(1) && !mixed.is_unlimited(0));
+        for turned in [0.0, 3.5, -40.0, 1e6] {
+            let q = JointVector::<2>::new(0.95, turned);
+            let mut gradient = JointVector::<2>::repeat(f64::NAN);
+            let h = mixed.value_and_gradient(&q, &mut gradient).unwrap();
+            // Joint 0 is 0.15 rad past its threshold 0.8: the same cost as the limited joint alone.
+            assert_eq!(h, alone.value(&JointVector::<1>::new(0.95)).unwrap());
+            assert!(h > 0.0);
+            assert_eq!(gradient[1], 0.0);
+            assert_eq!(mixed.violated_joint(&q), None);
+            assert_eq!(mixed.normalized(&q)[1], 0.5);
+        }
+        let (low, high) = mixed.activation_thresholds();
+        assert_eq!((low[1], high[1]), (-inf, inf));
+        assert!((low[0] + 0.8).abs() < 1e-15 && (high[0] - 0.8).abs() < 1e-15);
+        assert_eq!(mixed.half_band_cost(1), None);
+        assert_eq!(
+            mixed.default_removal_threshold(),
+            alone.default_removal_threshold()
+        );
+        let all_unlimited =
+            JointLimits::new(JointVector::<1>::new(-inf), JointVector::<1>::new(inf), 0.1).unwrap();
+        assert_eq!(all_unlimited.default_removal_threshold(), inf);
+        // Half-unlimited or reversed infinite pairs are not an unlimited joint.
+        for (lo, hi) in [(-inf, 1.0), (-1.0, inf), (inf, -inf), (-inf, -inf)] {
+            assert!(matches!(
+                JointLimits::new(JointVector::<1>::new(lo), JointVector::<1>::new(hi), 0.1),
+                Err(CostError::InvalidLimits { joint: 0, .. })
+            ));
         }
     }
 

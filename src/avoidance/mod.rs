@@ -19,12 +19,14 @@
 pub mod collision;
 mod composite;
 mod joint_limits;
+pub mod mesh;
 pub mod obstacles;
 pub mod visibility;
 
 pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
 pub use joint_limits::JointLimits;
+pub use mesh::MeshPaths;
 pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 pub use visibility::VisibilityCost;
 
@@ -41,8 +43,9 @@ pub enum CostError {
         /// The ratio given.
         rho: f64,
     },
-    /// A joint's limits are not finite, beyond [`crate::bounds::JOINT_POSITION`] or not ordered (`lower < upper`).
-    #[error("joint {joint}: limits [{lower}, {upper}] must be finite, within ±1000 (m or rad), with lower < upper")]
+    /// A joint's limits are neither finite, within [`crate::bounds::JOINT_POSITION`] and ordered (`lower < upper`) nor
+    /// `(−∞, +∞)` (an unlimited joint).
+    #[error("joint {joint}: limits [{lower}, {upper}] must be finite, within ±1000 (m or rad), with lower < upper, or [-inf, inf] for an unlimited joint")]
     InvalidLimits {
         /// The joint index (0-based).
         joint: usize,
@@ -59,13 +62,52 @@ pub enum CostError {
         /// Its value.
         value: f64,
     },
-    /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>`).
-    #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule)")]
+    /// A link's collision geometry is of a kind without a loader (a URDF `<mesh>` in a format other than STL, OBJ or
+    /// COLLADA).
+    #[error("link {link:?}: unsupported collision geometry {geometry} (supported: box, cylinder, sphere, capsule, STL, OBJ and COLLADA meshes)")]
     UnsupportedGeometry {
         /// The link.
         link: String,
         /// What was found.
         geometry: String,
+    },
+    /// A mesh file of a link's collision geometry cannot be read (missing, unreadable).
+    #[error("link {link:?}: cannot read mesh file {file}: {message}")]
+    MeshFile {
+        /// The link.
+        link: String,
+        /// The file the URDF `filename` led to.
+        file: String,
+        /// The operating system's message.
+        message: String,
+    },
+    /// A mesh file of a link's collision geometry is not a valid mesh of its format, or holds no vertex.
+    #[error("link {link:?}: malformed mesh file {file}: {message}")]
+    MalformedMesh {
+        /// The link.
+        link: String,
+        /// The file.
+        file: String,
+        /// What is wrong (the format reader's message).
+        message: String,
+    },
+    /// A `package://` mesh URI names a package that is neither in the package map nor on `ROS_PACKAGE_PATH`.
+    #[error("link {link:?}: mesh {filename:?} names package {package:?}, which is neither in the package map nor on ROS_PACKAGE_PATH")]
+    UnknownPackage {
+        /// The link.
+        link: String,
+        /// The URDF `filename`.
+        filename: String,
+        /// The package name.
+        package: String,
+    },
+    /// The points of a convex-hull shape make no convex polyhedron (fewer than three, or all on a line).
+    #[error("{owner:?}: the convex hull of {points} points is degenerate (fewer than three points, or all on a line)")]
+    DegenerateConvexHull {
+        /// The link or obstacle.
+        owner: String,
+        /// How many points were given.
+        points: usize,
     },
     /// A size or pose of a collision shape is not finite, or a size is not > 0.
     #[error("{owner:?}: collision shape {field} = {value} must be finite (and > 0 for a size)")]

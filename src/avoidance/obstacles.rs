@@ -22,7 +22,7 @@
 //! no shape penetrates an obstacle.
 
 use super::collision::{proximity, signed_distance, Collider, Geometry};
-use super::{checked_cost, Cost, CostError};
+use super::{checked_cost, Cost, CostError, MeshPaths};
 use crate::math::{first_non_finite, JointVector};
 use crate::robot::{parse_urdf, ChainLink, KinematicState, KinematicsWorkspace, SerialChain};
 use nalgebra::{Isometry3, SMatrix};
@@ -51,9 +51,12 @@ impl LinkColliders {
     /// The `<collision>` elements of the links on `chain`'s path and of the links attached to them by fixed joints,
     /// from the URDF text the chain was loaded from. Other links are ignored.
     ///
+    /// Mesh files are found as [`MeshPaths::new`] says, relative paths against the working directory; see
+    /// [`LinkColliders::from_urdf_robot_with_meshes`] to give the URDF's directory and package directories.
+    ///
     /// # Errors
-    /// [`CostError::Robot`] for unparsable URDF, [`CostError::UnsupportedGeometry`] for a `<mesh>`,
-    /// [`CostError::InvalidGeometry`] for a non-positive or non-finite size or pose.
+    /// [`CostError::Robot`] for unparsable URDF, [`CostError::InvalidGeometry`] for a non-positive or non-finite size
+    /// or pose, and the mesh errors of [`LinkColliders::from_urdf_robot_with_meshes`].
     pub fn from_urdf_str<const N: usize>(
         xml: &str,
         chain: &SerialChain<N>,
@@ -68,6 +71,21 @@ impl LinkColliders {
     pub fn from_urdf_robot<const N: usize>(
         robot: &urdf_rs::Robot,
         chain: &SerialChain<N>,
+    ) -> Result<Self, CostError> {
+        Self::from_urdf_robot_with_meshes(robot, chain, &MeshPaths::new(""))
+    }
+
+    /// As [`LinkColliders::from_urdf_robot`], with the mesh files of `<mesh>` elements found through `meshes`; each
+    /// mesh is read once, here, and becomes the convex hull of its vertices ([D20](crate::theory#d20)).
+    ///
+    /// # Errors
+    /// As [`LinkColliders::from_urdf_robot`]; for meshes, each naming the link and the file:
+    /// [`CostError::UnknownPackage`], [`CostError::MeshFile`] (missing or unreadable), [`CostError::MalformedMesh`],
+    /// [`CostError::UnsupportedGeometry`] (a format other than STL, OBJ and COLLADA), [`CostError::DegenerateConvexHull`].
+    pub fn from_urdf_robot_with_meshes<const N: usize>(
+        robot: &urdf_rs::Robot,
+        chain: &SerialChain<N>,
+        meshes: &MeshPaths,
     ) -> Result<Self, CostError> {
         // (link, carrier chain link, carrier_from_link): the chain links, then whatever fixed joints attach to them.
         let mut attached: Vec<(String, String, Isometry3<f64>)> = chain
@@ -101,7 +119,7 @@ impl LinkColliders {
                 continue;
             };
             for collision in &urdf_link.collision {
-                let geometry = Geometry::from_urdf(link, &collision.geometry)?;
+                let geometry = Geometry::from_urdf(link, &collision.geometry, meshes)?;
                 let origin = urdf_pose(link, &collision.origin)?;
                 colliders.push(LinkCollider {
                     link: link.clone(),

@@ -1,6 +1,6 @@
 //! Forward kinematics and geometric Jacobians of a [`SerialChain`], written into a preallocated workspace.
 
-use super::{ChainLink, JointKind, RobotError, SerialChain};
+use super::{ChainLink, Joint, JointKind, MimicJoint, RobotError, SerialChain};
 use crate::math::{all_finite, JointVector, KinematicJacobian};
 use nalgebra::{Isometry3, Point3, SMatrix, Translation3, UnitQuaternion, Vector3};
 
@@ -76,7 +76,7 @@ impl<const N: usize> SerialChain<N> {
         }
         let mut rotation = UnitQuaternion::identity();
         let mut translation = Vector3::zeros();
-        for ((((joint, (&qi, &(s, c))), frame), axis), rotational) in self
+        for ((((joint, (&qi, &half)), frame), axis), rotational) in self
             .joints
             .iter()
             .zip(q.iter().zip(half_angles.iter()))
@@ -85,21 +85,19 @@ impl<const N: usize> SerialChain<N> {
             .zip(state.rotational.iter_mut())
         {
             *rotational = joint.kind.is_rotational();
-            let matrix = rotation.to_rotation_matrix();
-            let joint_origin = translation + matrix * joint.origin.translation.vector;
-            *axis = matrix * joint.axis_in_parent;
-            if *rotational {
-                // origin.rotation ⊗ (cos(q/2), sin(q/2) axis), unit by construction.
-                let local = joint.origin.rotation.into_inner() * c + joint.origin_times_axis * s;
-                rotation *= UnitQuaternion::new_unchecked(local);
-                translation = joint_origin;
-            } else {
-                rotation *= joint.origin.rotation;
-                translation = joint_origin + *axis * qi;
-            }
+            *axis = joint.advance(&mut rotation, &mut translation, qi, half);
             *frame = Isometry3::from_parts(Translation3::from(translation), rotation);
         }
-        let base_from_segment = Isometry3::from_parts(Translation3::from(translation), rotation);
+        // Mimic joints after the last independent joint move the frames beyond them ([D19](crate::theory#d19)).
+        let mut base_from_segment =
+            Isometry3::from_parts(Translation3::from(translation), rotation);
+        for mimic in &self.mimic_joints {
+            mimic.advance(
+                &mut base_from_segment.rotation,
+                &mut base_from_segment.translation.vector,
+                q,
+            );
+        }
         state.base_from_tip = base_from_segment * self.segment_from_tip;
 
         // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
@@ -128,6 +126,30 @@ impl<const N: usize> SerialChain<N> {
                 .fixed_rows_mut::<3>(3)
                 .copy_from(&(tip_from_base * angular));
         }
+        // Each mimic joint adds its own column, times its multiplier, to its leader's.
+        if let Some(last) = N.checked_sub(1) {
+            let (base_jacobian, tip_jacobian) = (&mut state.base_jacobian, &mut state.tip_jacobian);
+            for_each_mimic_column(
+                &self.mimic_joints,
+                &state.base_from_segment[last],
+                q,
+                &tip,
+                |leader, linear, angular| {
+                    let (mut base_column, mut tip_column) = (
+                        base_jacobian.column_mut(leader),
+                        tip_jacobian.column_mut(leader),
+                    );
+                    let mut base_linear = base_column.fixed_rows_mut::<3>(0);
+                    base_linear += linear;
+                    let mut base_angular = base_column.fixed_rows_mut::<3>(3);
+                    base_angular += angular;
+                    let mut tip_linear = tip_column.fixed_rows_mut::<3>(0);
+                    tip_linear += tip_from_base * linear;
+                    let mut tip_angular = tip_column.fixed_rows_mut::<3>(3);
+                    tip_angular += tip_from_base * angular;
+                },
+            );
+        }
         // Finite inputs can still overflow (a prismatic position near 1e308): nothing non-finite is returned as Ok.
         let what = if !all_finite(&state.base_from_tip.translation.vector) {
             Some("tip pose")
@@ -143,6 +165,78 @@ impl<const N: usize> SerialChain<N> {
             });
         }
         Ok(&workspace.state)
+    }
+}
+
+impl Joint {
+    /// Moves the frame `base_from_parent = (rotation, translation)` — the child frame of the previous movable joint,
+    /// in the base frame — to `base_from_child = base_from_parent · origin · motion(θ)`, the motion a rotation by `θ`
+    /// (rad) about the axis or a translation by `θ` (m) along it; `half` is `(sin θ/2, cos θ/2)` for a rotational
+    /// joint (unused otherwise). Returns the joint axis in the base frame; the joint's origin `o` is the new
+    /// translation of a rotational joint.
+    #[inline]
+    fn advance(
+        &self,
+        rotation: &mut UnitQuaternion<f64>,
+        translation: &mut Vector3<f64>,
+        theta: f64,
+        (s, c): (f64, f64),
+    ) -> Vector3<f64> {
+        let matrix = rotation.to_rotation_matrix();
+        let joint_origin = *translation + matrix * self.origin.translation.vector;
+        let axis = matrix * self.axis_in_parent;
+        if self.kind.is_rotational() {
+            // origin.rotation ⊗ (cos(θ/2), sin(θ/2) axis), unit by construction.
+            let local = self.origin.rotation.into_inner() * c + self.origin_times_axis * s;
+            *rotation *= UnitQuaternion::new_unchecked(local);
+            *translation = joint_origin;
+        } else {
+            *rotation *= self.origin.rotation;
+            *translation = joint_origin + axis * theta;
+        }
+        axis
+    }
+}
+
+/// Walks `mimics` (consecutive mimic joints) from the frame `base_from_segment` at chain coordinates `q`, and gives
+/// for each its leader `i` and its contribution to column `i` of the Jacobian of the point `p` (base frame):
+/// `m_k (a_k × (p − o_k), a_k)` for a rotational joint, `(m_k a_k, 0)` for a prismatic one ([D19](crate::theory#d19)).
+fn for_each_mimic_column<const N: usize>(
+    mimics: &[MimicJoint],
+    base_from_segment: &Isometry3<f64>,
+    q: &JointVector<N>,
+    p: &Vector3<f64>,
+    mut add: impl FnMut(usize, Vector3<f64>, Vector3<f64>),
+) {
+    let (mut rotation, mut translation) = (
+        base_from_segment.rotation,
+        base_from_segment.translation.vector,
+    );
+    for mimic in mimics {
+        let axis = mimic.multiplier * mimic.advance(&mut rotation, &mut translation, q);
+        if mimic.joint.kind.is_rotational() {
+            add(mimic.leader, axis.cross(&(p - translation)), axis);
+        } else {
+            add(mimic.leader, axis, Vector3::zeros());
+        }
+    }
+}
+
+impl MimicJoint {
+    /// [`Joint::advance`] at this mimic joint's position for the chain coordinates `q`.
+    fn advance<const N: usize>(
+        &self,
+        rotation: &mut UnitQuaternion<f64>,
+        translation: &mut Vector3<f64>,
+        q: &JointVector<N>,
+    ) -> Vector3<f64> {
+        let theta = self.position(q);
+        let half = if self.joint.kind.is_rotational() {
+            (0.5 * theta).sin_cos()
+        } else {
+            (0.0, 1.0)
+        };
+        self.joint.advance(rotation, translation, theta, half)
     }
 }
 
@@ -185,16 +279,26 @@ impl<const N: usize> KinematicState<N> {
     /// # Errors
     /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
     pub fn base_from_link(&self, link: &ChainLink) -> Result<Isometry3<f64>, RobotError> {
-        Ok(match link.moved_by {
-            None => link.segment_from_link,
-            Some(index) => self.segment(index)? * link.segment_from_link,
-        })
+        let mut base_from_frame = match link.moved_by {
+            None => Isometry3::identity(),
+            Some(index) => *self.segment(index)?,
+        };
+        for mimic in &link.mimics {
+            self.mimic_leader(mimic)?;
+            mimic.advance(
+                &mut base_from_frame.rotation,
+                &mut base_from_frame.translation.vector,
+                &self.q,
+            );
+        }
+        Ok(base_from_frame * link.segment_from_link)
     }
 
     /// The point Jacobian of a point rigidly attached to `link`, at `point_in_base` (its current position, base
     /// frame): `out · q̇` is the point's linear velocity (m/s) in base axes. Column `i` is `a_i × (p − o_i)` for a
     /// rotational joint, `a_i` for a prismatic one, and zero for joints after the link (and for all joints when the
-    /// link is attached to the base). Allocates nothing.
+    /// link is attached to the base); a mimic joint before the link adds its own such column, times its multiplier, to
+    /// its leader's ([D19](crate::theory#d19)). Allocates nothing.
     ///
     /// # Errors
     /// [`RobotError::JointIndexOutOfRange`] when `link` comes from a chain with more joints than `N`.
@@ -224,12 +328,35 @@ impl<const N: usize> KinematicState<N> {
             };
             out.column_mut(i).copy_from(&column);
         }
+        if let (Some(index), false) = (link.moved_by, link.mimics.is_empty()) {
+            for mimic in &link.mimics {
+                self.mimic_leader(mimic)?;
+            }
+            for_each_mimic_column(
+                &link.mimics,
+                self.segment(index)?,
+                &self.q,
+                &point_in_base.coords,
+                |leader, linear, _| {
+                    let mut column = out.column_mut(leader);
+                    column += linear;
+                },
+            );
+        }
         Ok(())
     }
 
     fn segment(&self, index: usize) -> Result<&Isometry3<f64>, RobotError> {
         self.base_from_segment
             .get(index)
+            .ok_or(RobotError::JointIndexOutOfRange { index, joints: N })
+    }
+
+    /// The leader of a mimic joint, checked against `N`.
+    fn mimic_leader(&self, mimic: &MimicJoint) -> Result<usize, RobotError> {
+        let index = mimic.leader;
+        (index < N)
+            .then_some(index)
             .ok_or(RobotError::JointIndexOutOfRange { index, joints: N })
     }
 }

@@ -34,7 +34,13 @@
 //! # Joint limits
 //!
 //! Revolute and prismatic joints must carry finite limits `lower < upper` (rad or m). Continuous joints have no limit:
-//! their limits are `−∞` and `+∞` (a joint-limit cost must treat them as unlimited).
+//! their limits are `−∞` and `+∞`, which the joint-limit cost leaves out ([D18](crate::theory#d18)).
+//!
+//! # Mimic joints
+//!
+//! A URDF `<mimic>` joint on the path is no coordinate of the chain: its position is `m · q_i + o`, `i` the
+//! independent joint it follows ([`MimicJoint`]), and it adds `m` times its own column to column `i` of the
+//! Jacobians ([D19](crate::theory#d19)). Mimic joints are supported after the last independent joint of the path.
 //!
 //! ```
 //! use servostack::robot::{builtin, KinematicsWorkspace};
@@ -138,11 +144,42 @@ pub enum RobotError {
         /// Its URDF type.
         kind: &'static str,
     },
-    /// A joint on the path mimics another joint: the chain would count it as an independent degree of freedom.
-    #[error("joint {joint:?} is a mimic joint: mimic joints are not supported")]
-    MimicJoint {
-        /// Joint name.
+    /// A mimic joint on the path names a joint the URDF does not have.
+    #[error("joint {joint:?} mimics {leader:?}, which is not a joint of the URDF")]
+    MimicUnknownJoint {
+        /// The mimic joint.
         joint: String,
+        /// The joint it names.
+        leader: String,
+    },
+    /// Following `<mimic>` elements from a joint of the path comes back to a joint already met.
+    #[error("mimic joints form a cycle: {}", joints.join(" → "))]
+    MimicCycle {
+        /// The joints met, from the joint of the path to the one met twice.
+        joints: Vec<String>,
+    },
+    /// A mimic joint on the path follows a joint that is not an independent movable joint of the chain (off the
+    /// path, or fixed): the chain has no coordinate for it.
+    #[error(
+        "joint {joint:?} mimics {leader:?}, which is not a movable non-mimic joint between the base and tip links"
+    )]
+    MimicLeaderNotOnPath {
+        /// The mimic joint.
+        joint: String,
+        /// The joint it follows (at the end of a chain of mimics).
+        leader: String,
+    },
+    /// A mimic joint on the path comes before an independent joint: mimic joints are supported after the chain's last
+    /// independent joint (a coupled last axis, a finger as tip link), [D19](crate::theory#d19).
+    #[error(
+        "mimic joint {joint:?} comes before the independent joint {next:?}: mimic joints are supported only after \
+         the last independent joint of the chain"
+    )]
+    MimicBeforeJoint {
+        /// The mimic joint.
+        joint: String,
+        /// The independent joint after it.
+        next: String,
     },
     /// The chain has a different number of movable joints than the static size `N`.
     #[error("the chain has {found} movable joints, expected {expected}")]
@@ -154,7 +191,11 @@ pub enum RobotError {
     },
     /// A revolute or prismatic joint has no usable `<limit lower upper>` (absent, infinite, or `lower = upper = 0`,
     /// which is what urdf-rs reports for a missing `<limit>` element before URDF 1.2).
-    #[error("joint {joint:?} has no position limits (lower = {lower}, upper = {upper})")]
+    #[error(
+        "joint {joint:?} has no position limits (lower = {lower}, upper = {upper}): give it \
+         <limit lower=\"…\" upper=\"…\" effort=\"…\" velocity=\"…\"/> in the URDF (rad or m), or make it \
+         type=\"continuous\" if it turns without limit"
+    )]
     MissingLimits {
         /// Joint name.
         joint: String,
@@ -181,12 +222,12 @@ pub enum RobotError {
         /// The axis read.
         axis: [f64; 3],
     },
-    /// A number of the URDF on the path (origin, axis, limit) is NaN or infinite.
+    /// A number of the URDF on the path (origin, axis, limit, mimic) is NaN or infinite.
     #[error("joint {joint:?}: {field} is not finite: {values:?}")]
     NonFiniteUrdf {
         /// Joint name.
         joint: String,
-        /// Which field (`"origin xyz"`, `"origin rpy"`, `"axis"`, `"limit"`).
+        /// Which field (`"origin xyz"`, `"origin rpy"`, `"axis"`, `"limit"`, `"mimic"`).
         field: &'static str,
         /// The values read.
         values: Vec<f64>,
@@ -331,11 +372,57 @@ impl Joint {
     }
 }
 
+/// A mimic joint of the chain ([D19](crate::theory#d19)): a movable joint whose position is not a coordinate of the
+/// chain but follows an independent joint `i` (the *leader*),
+///
+/// ```text
+/// θ = multiplier · q_i + offset          (rad or m, as the joint's kind; multiplier in joint unit per leader unit)
+/// ```
+///
+/// so it adds `multiplier ×` its own geometric column to column `i` of the Jacobians. A `<mimic>` of a `<mimic>` is
+/// followed to the independent joint at its end, the multipliers and offsets composed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MimicJoint {
+    joint: Joint,
+    leader: usize,
+    multiplier: f64,
+    offset: f64,
+}
+
+impl MimicJoint {
+    /// The joint's geometry: name, kind, child link, origin (in the frame of the previous movable joint's child
+    /// link), axis.
+    pub fn joint(&self) -> &Joint {
+        &self.joint
+    }
+
+    /// The index `i` of the independent joint it follows.
+    pub fn leader(&self) -> usize {
+        self.leader
+    }
+
+    /// The multiplier (joint unit per leader unit).
+    pub fn multiplier(&self) -> f64 {
+        self.multiplier
+    }
+
+    /// The offset (rad or m).
+    pub fn offset(&self) -> f64 {
+        self.offset
+    }
+
+    /// Its position `multiplier · q_leader + offset` at the chain coordinates `q`.
+    pub fn position<const N: usize>(&self, q: &JointVector<N>) -> f64 {
+        self.multiplier * q[self.leader] + self.offset
+    }
+}
+
 /// One URDF link on the path from base to tip, with the segment that carries it (for collision geometry).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChainLink {
     name: String,
     moved_by: Option<usize>,
+    mimics: Vec<MimicJoint>,
     segment_from_link: Isometry3<f64>,
 }
 
@@ -345,13 +432,20 @@ impl ChainLink {
         &self.name
     }
 
-    /// The index of the last joint that moves this link (the link belongs to segment `i`), or `None` for links
-    /// rigidly attached to the base.
+    /// The index of the last independent joint that moves this link (the link belongs to segment `i`), or `None` for
+    /// links rigidly attached to the base.
     pub fn moved_by(&self) -> Option<usize> {
         self.moved_by
     }
 
-    /// The fixed pose of the link frame in its segment frame (in the base frame when [`Self::moved_by`] is `None`).
+    /// The mimic joints between the segment frame and this link, in order (empty unless the link lies beyond a
+    /// mimic joint of the chain).
+    pub fn mimics(&self) -> &[MimicJoint] {
+        &self.mimics
+    }
+
+    /// The fixed pose of the link frame in the frame of the last movable joint before it: its segment frame (the
+    /// base frame when [`Self::moved_by`] is `None`), or the child frame of the last of [`Self::mimics`].
     pub fn segment_from_link(&self) -> &Isometry3<f64> {
         &self.segment_from_link
     }
@@ -366,6 +460,7 @@ pub struct SerialChain<const N: usize> {
     base_link: String,
     tip_link: String,
     joints: [Joint; N],
+    mimic_joints: Vec<MimicJoint>,
     lower: JointVector<N>,
     upper: JointVector<N>,
     segment_from_tip: Isometry3<f64>,
@@ -383,9 +478,14 @@ impl<const N: usize> SerialChain<N> {
         &self.tip_link
     }
 
-    /// The movable joints, from base to tip.
+    /// The independent movable joints, from base to tip: the chain's coordinates `q`.
     pub fn joints(&self) -> &[Joint; N] {
         &self.joints
+    }
+
+    /// The mimic joints of the path, from base to tip, all after the last of [`Self::joints`] (see [`MimicJoint`]).
+    pub fn mimic_joints(&self) -> &[MimicJoint] {
+        &self.mimic_joints
     }
 
     /// Lower joint limits (rad or m); `−∞` for continuous joints (unless set by [`Self::with_limits`]).
@@ -398,8 +498,9 @@ impl<const N: usize> SerialChain<N> {
         &self.upper
     }
 
-    /// The fixed pose of the tip frame in the frame of the last segment (in the base frame when `N = 0`): the fixed
-    /// joints after the last movable joint, composed.
+    /// The fixed pose of the tip frame in the frame of the last movable joint's child link (the last segment, the
+    /// last mimic joint's child, or the base when the chain has no movable joint): the fixed joints after the last
+    /// movable joint, composed.
     pub fn segment_from_tip(&self) -> &Isometry3<f64> {
         &self.segment_from_tip
     }
@@ -415,9 +516,10 @@ impl<const N: usize> SerialChain<N> {
     }
 
     /// The same chain with other joint limits `lower < upper` (rad for revolute and continuous joints, m for
-    /// prismatic joints), e.g. the narrower ranges of a controller's safety configuration. Every limit must be finite;
-    /// a continuous joint given limits is limited from then on (its [`JointKind`] is unchanged). Nothing else of the
-    /// chain changes.
+    /// prismatic joints), e.g. the narrower ranges of a controller's safety configuration. Limits must be finite,
+    /// except that a continuous joint may keep `(−∞, +∞)` (unlimited); a continuous joint given finite limits is
+    /// limited from then on — soft limits the joint-limit cost keeps it within ([D18](crate::theory#d18)) — and its
+    /// [`JointKind`] is unchanged. Nothing else of the chain changes.
     ///
     /// ```
     /// use servostack::math::JointVector;
@@ -429,8 +531,8 @@ impl<const N: usize> SerialChain<N> {
     /// ```
     ///
     /// # Errors
-    /// [`RobotError::NonFiniteLimits`] for a NaN or infinite limit, [`RobotError::OutOfRange`] for one beyond
-    /// [`crate::bounds::JOINT_POSITION`], [`RobotError::InvalidLimits`] for
+    /// [`RobotError::NonFiniteLimits`] for a NaN or infinite limit (other than `(−∞, +∞)` on a continuous joint),
+    /// [`RobotError::OutOfRange`] for one beyond [`crate::bounds::JOINT_POSITION`], [`RobotError::InvalidLimits`] for
     /// `lower ≥ upper`; both name the first joint at fault.
     pub fn with_limits(
         mut self,
@@ -439,6 +541,12 @@ impl<const N: usize> SerialChain<N> {
     ) -> Result<Self, RobotError> {
         for (i, joint) in self.joints.iter().enumerate() {
             let (lo, hi) = (lower[i], upper[i]);
+            let unlimited = joint.kind == JointKind::Continuous
+                && lo == f64::NEG_INFINITY
+                && hi == f64::INFINITY;
+            if unlimited {
+                continue;
+            }
             if !(lo.is_finite() && hi.is_finite()) {
                 return Err(RobotError::NonFiniteLimits {
                     joint: joint.name.clone(),
@@ -531,7 +639,32 @@ mod tests {
         let mut bad = lower;
         bad[0] = f64::NEG_INFINITY;
         assert!(matches!(
-            chain.with_limits(bad, upper),
+            chain.clone().with_limits(bad, upper),
+            Err(RobotError::NonFiniteLimits { .. })
+        ));
+        // (−∞, +∞) is refused on a revolute joint (joint 0)...
+        let mut up = upper;
+        up[0] = f64::INFINITY;
+        assert!(matches!(
+            chain.with_limits(bad, up),
+            Err(RobotError::NonFiniteLimits { .. })
+        ));
+    }
+
+    /// A continuous joint may be left unlimited next to soft limits on the others, or given soft limits itself.
+    #[test]
+    fn with_limits_keeps_a_continuous_joint_unlimited() {
+        let chain = builtin::rail7().unwrap().chain;
+        let mut lower = JointVector::<7>::from_element(-0.5);
+        let mut upper = JointVector::<7>::from_element(0.5);
+        lower[4] = f64::NEG_INFINITY;
+        upper[4] = f64::INFINITY;
+        let limited = chain.clone().with_limits(lower, upper).unwrap();
+        assert!(limited.lower_limits()[4].is_infinite() && limited.upper_limits()[4].is_infinite());
+        assert_eq!(limited.upper_limits()[3], 0.5);
+        lower[4] = -1.0;
+        assert!(matches!(
+            chain.with_limits(lower, upper),
             Err(RobotError::NonFiniteLimits { .. })
         ));
     }

@@ -1,6 +1,6 @@
 //! Loading a [`SerialChain`] from URDF (urdf-rs): path search from tip to base, fixed-joint folding, validation.
 
-use super::{ChainLink, Joint, JointKind, RobotError, SerialChain};
+use super::{ChainLink, Joint, JointKind, MimicJoint, RobotError, SerialChain};
 use crate::bounds::{PhysicalRange, ANGLE_RAD, LENGTH_M};
 use crate::math::JointVector;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -14,14 +14,18 @@ impl<const N: usize> SerialChain<N> {
     /// Loads the chain from `base_link` to `tip_link` of a URDF document.
     ///
     /// Fixed joints on the path are folded into the transforms; revolute, continuous and prismatic joints become the
-    /// `N` joints, in order from base to tip. Links and joints off the path are ignored (so any tree works).
+    /// `N` joints, in order from base to tip, except `<mimic>` joints, which follow one of those
+    /// ([`SerialChain::mimic_joints`], [D19](crate::theory#d19)). Links and joints off the path are ignored (so any
+    /// tree works, e.g. an arm whose gripper fingers mimic each other on branches off the path).
     ///
     /// # Errors
     /// [`RobotError::UrdfTooLarge`] and [`RobotError::UrdfTooDeep`] for text beyond the bounds checked before parsing
     /// ([D17](crate::theory#d17)); [`RobotError::Urdf`] for malformed XML/URDF; [`RobotError::UnknownLink`] when the base or tip link does not
     /// exist; [`RobotError::MultipleParents`], [`RobotError::TipNotReachable`] when no path leads from base to tip;
-    /// [`RobotError::UnsupportedJoint`] (floating, planar, spherical) and [`RobotError::MimicJoint`] for joints on the
-    /// path; [`RobotError::JointCount`] when the path has a number of movable joints other than `N`;
+    /// [`RobotError::UnsupportedJoint`] (floating, planar, spherical) for joints on the path;
+    /// [`RobotError::MimicUnknownJoint`], [`RobotError::MimicCycle`], [`RobotError::MimicLeaderNotOnPath`],
+    /// [`RobotError::MimicBeforeJoint`] for mimic joints on the path; [`RobotError::JointCount`] when the path has a
+    /// number of independent movable joints other than `N`;
     /// [`RobotError::MissingLimits`], [`RobotError::InvalidLimits`], [`RobotError::ZeroAxis`],
     /// [`RobotError::NonFiniteUrdf`], [`RobotError::OutOfRange`] for invalid joints on the path.
     pub fn from_urdf_str(xml: &str, base_link: &str, tip_link: &str) -> Result<Self, RobotError> {
@@ -65,12 +69,18 @@ impl<const N: usize> SerialChain<N> {
         let mut joints = Vec::with_capacity(N);
         let mut lower = Vec::with_capacity(N);
         let mut upper = Vec::with_capacity(N);
+        // The mimic joints met so far, each with the name of the joint it follows in the end, its multiplier and
+        // offset (the name is resolved to an index once every independent joint is known).
+        let mut mimics: Vec<(Joint, String, f64, f64)> = Vec::new();
         let mut links = vec![ChainLink {
             name: base_link.to_owned(),
             moved_by: None,
+            mimics: Vec::new(),
             segment_from_link: Isometry3::identity(),
         }];
-        // Pose of the current link in the frame of the current segment (the base before the first movable joint).
+        // How many mimic joints come before each link of `links`.
+        let mut mimics_before_link = vec![0];
+        // Pose of the current link in the frame of the last movable joint's child (the base before the first one).
         let mut segment_from_link = Isometry3::identity();
         for urdf_joint in path {
             let origin = segment_from_link * joint_origin(urdf_joint)?;
@@ -86,29 +96,58 @@ impl<const N: usize> SerialChain<N> {
             match kind {
                 None => segment_from_link = origin,
                 Some(kind) => {
-                    if urdf_joint.mimic.is_some() {
-                        return Err(RobotError::MimicJoint {
-                            joint: urdf_joint.name.clone(),
-                        });
-                    }
-                    let (lo, hi) = joint_limits(urdf_joint, kind)?;
-                    lower.push(lo);
-                    upper.push(hi);
-                    joints.push(Joint::new(
+                    let joint = Joint::new(
                         urdf_joint.name.clone(),
                         kind,
                         urdf_joint.child.link.clone(),
                         origin,
                         joint_axis(urdf_joint)?,
-                    ));
+                    );
+                    if urdf_joint.mimic.is_some() {
+                        let (leader, multiplier, offset) = mimic_leader(robot, urdf_joint)?;
+                        mimics.push((joint, leader, multiplier, offset));
+                    } else {
+                        if let Some((mimic, ..)) = mimics.first() {
+                            return Err(RobotError::MimicBeforeJoint {
+                                joint: mimic.name.clone(),
+                                next: urdf_joint.name.clone(),
+                            });
+                        }
+                        let (lo, hi) = joint_limits(urdf_joint, kind)?;
+                        lower.push(lo);
+                        upper.push(hi);
+                        joints.push(joint);
+                    }
                     segment_from_link = Isometry3::identity();
                 }
             }
             links.push(ChainLink {
                 name: urdf_joint.child.link.clone(),
                 moved_by: joints.len().checked_sub(1),
+                mimics: Vec::new(), // filled below, once the mimic joints are resolved
                 segment_from_link,
             });
+            mimics_before_link.push(mimics.len());
+        }
+
+        let mut mimic_joints = Vec::with_capacity(mimics.len());
+        for (joint, leader, multiplier, offset) in mimics {
+            let leader = joints
+                .iter()
+                .position(|j| j.name == leader)
+                .ok_or_else(|| RobotError::MimicLeaderNotOnPath {
+                    joint: joint.name.clone(),
+                    leader,
+                })?;
+            mimic_joints.push(MimicJoint {
+                joint,
+                leader,
+                multiplier,
+                offset,
+            });
+        }
+        for (link, &before) in links.iter_mut().zip(&mimics_before_link) {
+            link.mimics = mimic_joints[..before].to_vec();
         }
 
         let found = joints.len();
@@ -119,12 +158,55 @@ impl<const N: usize> SerialChain<N> {
             base_link: base_link.to_owned(),
             tip_link: tip_link.to_owned(),
             joints,
+            mimic_joints,
             lower: JointVector::from_iterator(lower),
             upper: JointVector::from_iterator(upper),
             segment_from_tip: segment_from_link,
             links,
         })
     }
+}
+
+/// The independent joint a mimic joint follows in the end, with the composed multiplier and offset: following
+/// `θ_j = m_j θ_k + o_j` through mimics of mimics, `θ = (Π m) θ_leader + o` ([D19](crate::theory#d19)).
+///
+/// # Errors
+/// [`RobotError::MimicUnknownJoint`], [`RobotError::MimicCycle`], [`RobotError::NonFiniteUrdf`] (`"mimic"`).
+fn mimic_leader(
+    robot: &urdf_rs::Robot,
+    joint: &urdf_rs::Joint,
+) -> Result<(String, f64, f64), RobotError> {
+    let (mut multiplier, mut offset) = (1.0, 0.0);
+    let mut met = vec![joint.name.clone()];
+    let mut current = joint;
+    while let Some(mimic) = &current.mimic {
+        let (m, o) = (mimic.multiplier.unwrap_or(1.0), mimic.offset.unwrap_or(0.0));
+        if !(m.is_finite() && o.is_finite()) {
+            return Err(RobotError::NonFiniteUrdf {
+                joint: current.name.clone(),
+                field: "mimic",
+                values: vec![m, o],
+            });
+        }
+        // θ = multiplier · θ_current + offset, θ_current = m · θ_next + o.
+        offset += multiplier * o;
+        multiplier *= m;
+        let next = robot
+            .joints
+            .iter()
+            .find(|j| j.name == mimic.joint)
+            .ok_or_else(|| RobotError::MimicUnknownJoint {
+                joint: current.name.clone(),
+                leader: mimic.joint.clone(),
+            })?;
+        let seen = met.contains(&next.name);
+        met.push(next.name.clone());
+        if seen {
+            return Err(RobotError::MimicCycle { joints: met });
+        }
+        current = next;
+    }
+    Ok((current.name.clone(), multiplier, offset))
 }
 
 /// Parses URDF text with urdf-rs, once its size and nesting depth are checked.
