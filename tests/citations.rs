@@ -185,6 +185,8 @@ fn scanned_files() -> Vec<(String, String)> {
     }
     collect_files(&root.join("docs"), &["md"], &mut files);
     collect_files(&root.join("assets/scenarios"), &["toml"], &mut files);
+    collect_files(&root.join("assets/urdf"), &["urdf"], &mut files);
+    collect_files(&root.join("tests/data"), &["toml", "urdf"], &mut files);
     files.sort();
     files
         .into_iter()
