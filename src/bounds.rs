@@ -62,6 +62,25 @@ pub const JOINT_POSITION: PhysicalRange = PhysicalRange {
     text: "finite, within ±1000 (m or rad)",
 };
 
+/// Joint coordinates the kinematics accept (m or rad), far beyond any joint's limits (positions outside the limits are
+/// the caller's business) yet small enough that nothing overflows: with origins within [`LENGTH_M`], unit axes and
+/// mimic multipliers within [`MIMIC_MULTIPLIER`], every translation of the chain is a sum of a few dozen terms below
+/// 1e106 and every Jacobian entry a cross product of a unit axis with a difference of two such translations, so the
+/// pose and the Jacobians are finite by construction and the kinematics need not check them.
+pub const KINEMATIC_COORDINATE: PhysicalRange = PhysicalRange {
+    low: -1e100,
+    high: 1e100,
+    text: "finite, within ±1e100 (m or rad)",
+};
+
+/// Multipliers of URDF mimic joints, composed along a chain of mimics (`θ = m q + o`): a gear ratio beyond a million is
+/// a typing error.
+pub const MIMIC_MULTIPLIER: PhysicalRange = PhysicalRange {
+    low: -1e6,
+    high: 1e6,
+    text: "finite, within ±1e6",
+};
+
 /// Gains (s⁻¹): task gains `λ_i`, the transition gain `μ`, the avoidance gain `κ`. A million per second is a time
 /// constant of a microsecond, a thousand times faster than a 1 kHz loop can realise.
 pub const GAIN_PER_S: PhysicalRange = PhysicalRange {

@@ -154,12 +154,31 @@ fn urdf_numbers_beyond_physical_ranges_are_named() {
 fn kinematics_never_return_a_non_finite_pose() {
     let chain = builtin::rail7().unwrap().chain;
     let mut workspace = KinematicsWorkspace::new();
-    // Finite positions at the top of the range: the two prismatic joints add up beyond f64::MAX.
+    // Finite positions at the top of the range: the two prismatic joints would add up beyond f64::MAX.
     let q = JointVector::<7>::repeat(f64::MAX);
     match chain.kinematics(&mut workspace, &q) {
-        Err(RobotError::NonFiniteKinematics { q: given, .. }) => assert_eq!(given[0], f64::MAX),
-        Err(other) => panic!("expected NonFiniteKinematics, got {other:?}"),
+        Err(RobotError::OutOfRange {
+            field: "position",
+            value,
+            ..
+        }) => assert_eq!(value, f64::MAX),
+        Err(other) => panic!("expected OutOfRange, got {other:?}"),
         Ok(state) => panic!("Ok with pose {:?}", state.base_from_tip()),
+    }
+    // At the edge of the accepted coordinates, every joint at ±1e100 (the prismatic ones adding up, the revolute ones
+    // any angle): the pose and both Jacobians are finite without being checked.
+    for sign in [1.0, -1.0] {
+        let state = chain
+            .kinematics(&mut workspace, &JointVector::<7>::repeat(sign * 1e100))
+            .unwrap();
+        assert!(state
+            .base_from_tip()
+            .translation
+            .vector
+            .iter()
+            .all(|v| v.is_finite()));
+        assert!(state.base_jacobian().iter().all(|v| v.is_finite()));
+        assert!(state.tip_jacobian().iter().all(|v| v.is_finite()));
     }
     // Ordinary positions are unaffected.
     assert!(chain

@@ -274,6 +274,27 @@ fn non_finite_mimic_multiplier() {
     ));
 }
 
+/// A mimic multiplier beyond ±1e6 (composed along a chain of mimics) or an offset beyond ±1000 is out of range: such a
+/// joint's angle could overflow the kinematics.
+#[test]
+fn mimic_multiplier_or_offset_out_of_range() {
+    for (attributes, value) in [(r#"multiplier="2e6""#, 2e6), (r#"offset="-5e3""#, -5e3)] {
+        let xml = two_joints(
+            "revolute",
+            &format!(r#"{LIMIT}<mimic joint="j1" {attributes}/>"#),
+        );
+        match load::<1>(&xml, "a", "c") {
+            RobotError::OutOfRange {
+                joint,
+                field: "mimic",
+                value: given,
+                ..
+            } => assert_eq!((joint.as_str(), given), ("j2", value)),
+            other => panic!("{attributes}: expected OutOfRange, got {other:?}"),
+        }
+    }
+}
+
 #[test]
 fn joint_count_differs_from_n() {
     let xml = two_joints("revolute", LIMIT);

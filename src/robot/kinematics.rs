@@ -1,7 +1,8 @@
 //! Forward kinematics and geometric Jacobians of a [`SerialChain`], written into a preallocated workspace.
 
 use super::{ChainLink, Joint, JointKind, MimicJoint, RobotError, SerialChain};
-use crate::math::{all_finite, JointVector, KinematicJacobian};
+use crate::bounds::KINEMATIC_COORDINATE;
+use crate::math::{JointVector, KinematicJacobian};
 use nalgebra::{Isometry3, Point3, SMatrix, Translation3, UnitQuaternion, Vector3};
 
 /// Everything one kinematic evaluation computes, for `N` joints, read through the reference
@@ -52,9 +53,10 @@ impl<const N: usize> SerialChain<N> {
     /// (see the [module docs](super) for the equations). Allocates nothing.
     ///
     /// # Errors
-    /// [`RobotError::NonFiniteJoint`] when an entry of `q` is NaN or infinite; [`RobotError::NonFiniteKinematics`]
-    /// when the pose or a Jacobian overflows (finite positions far beyond any joint's range). Positions outside the
-    /// joint limits are accepted (the limits are the caller's business: see [`SerialChain::within_limits`]).
+    /// [`RobotError::NonFiniteJoint`] when an entry of `q` is NaN or infinite; [`RobotError::OutOfRange`] (field
+    /// `"position"`) beyond [`KINEMATIC_COORDINATE`], which keeps the pose and the Jacobians finite by construction.
+    /// Positions outside the joint limits are accepted (the limits are the caller's business: see
+    /// [`SerialChain::within_limits`]).
     pub fn kinematics<'w>(
         &self,
         workspace: &'w mut KinematicsWorkspace<N>,
@@ -62,6 +64,19 @@ impl<const N: usize> SerialChain<N> {
     ) -> Result<&'w KinematicState<N>, RobotError> {
         if let Some((index, &value)) = q.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(RobotError::NonFiniteJoint { index, value });
+        }
+        if let Some((joint, &value)) = self
+            .joints
+            .iter()
+            .zip(q.iter())
+            .find(|(_, &v)| !KINEMATIC_COORDINATE.contains(v))
+        {
+            return Err(RobotError::OutOfRange {
+                joint: joint.name.clone(),
+                field: "position",
+                value,
+                expected: KINEMATIC_COORDINATE.text,
+            });
         }
         let state = &mut workspace.state;
         state.q = *q;
@@ -149,20 +164,6 @@ impl<const N: usize> SerialChain<N> {
                     tip_angular += tip_from_base * angular;
                 },
             );
-        }
-        // Finite inputs can still overflow (a prismatic position near 1e308): nothing non-finite is returned as Ok.
-        let what = if !all_finite(&state.base_from_tip.translation.vector) {
-            Some("tip pose")
-        } else if !(all_finite(&state.base_jacobian) && all_finite(&state.tip_jacobian)) {
-            Some("Jacobian")
-        } else {
-            None
-        };
-        if let Some(what) = what {
-            return Err(RobotError::NonFiniteKinematics {
-                what,
-                q: q.iter().copied().collect(),
-            });
         }
         Ok(&workspace.state)
     }

@@ -238,20 +238,13 @@ pub enum RobotError {
     OutOfRange {
         /// Joint name.
         joint: String,
-        /// Which field (`"origin xyz"`, `"origin rpy"`, `"limit"`).
+        /// Which field (`"origin xyz"`, `"origin rpy"`, `"limit"`, `"mimic"`, or `"position"` for a joint position
+        /// given to the kinematics).
         field: &'static str,
         /// The first value out of range.
         value: f64,
         /// The range.
         expected: &'static str,
-    },
-    /// The kinematics produced a non-finite pose or Jacobian (a joint position so large that the products overflow).
-    #[error("kinematics at q = {q:?}: the {what} is not finite")]
-    NonFiniteKinematics {
-        /// `"tip pose"` or `"Jacobian"`.
-        what: &'static str,
-        /// The joint positions given (rad or m).
-        q: Vec<f64>,
     },
     /// A joint limit given to [`SerialChain::with_limits`] is NaN or infinite.
     #[error("joint {joint:?}: limits must be finite (lower = {lower}, upper = {upper})")]

@@ -1,7 +1,7 @@
 //! Loading a [`SerialChain`] from URDF (urdf-rs): path search from tip to base, fixed-joint folding, validation.
 
 use super::{ChainLink, Joint, JointKind, MimicJoint, RobotError, SerialChain};
-use crate::bounds::{PhysicalRange, ANGLE_RAD, LENGTH_M};
+use crate::bounds::{PhysicalRange, ANGLE_RAD, LENGTH_M, MIMIC_MULTIPLIER};
 use crate::math::JointVector;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::collections::HashMap;
@@ -105,6 +105,20 @@ impl<const N: usize> SerialChain<N> {
                     );
                     if urdf_joint.mimic.is_some() {
                         let (leader, multiplier, offset) = mimic_leader(robot, urdf_joint)?;
+                        let out_of_range = [
+                            (multiplier, MIMIC_MULTIPLIER),
+                            (offset, crate::bounds::JOINT_POSITION),
+                        ]
+                        .into_iter()
+                        .find(|(value, range)| !range.contains(*value));
+                        if let Some((value, range)) = out_of_range {
+                            return Err(RobotError::OutOfRange {
+                                joint: urdf_joint.name.clone(),
+                                field: "mimic",
+                                value,
+                                expected: range.text,
+                            });
+                        }
                         mimics.push((joint, leader, multiplier, offset));
                     } else {
                         if let Some((mimic, ..)) = mimics.first() {
