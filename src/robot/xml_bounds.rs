@@ -74,16 +74,27 @@ pub(crate) fn check_urdf_text(xml: &str) -> Result<(), RobotError> {
 
 /// The index after the `>` that ends the tag whose content starts at `from` (quoted attribute values skipped), and
 /// whether the tag ends with `/>`. An unterminated tag runs to the end of the text.
+///
+/// A quote opens a value only right after `=` (spaces allowed between): a stray quote elsewhere in a malformed tag
+/// (`<link na'me>`) must not hide the rest of the text from the depth count while the parser, recovering or not, may
+/// still read it. A `>` inside a value does not end the tag, so `<a x="/>">` counts as an opening tag.
 fn tag_end(bytes: &[u8], from: usize) -> (usize, bool) {
     let mut quote = None;
+    let mut after_equals = false;
     for (k, &b) in bytes.iter().enumerate().skip(from) {
         match (quote, b) {
             (Some(q), _) if b == q => quote = None,
             (Some(_), _) => {}
-            (None, b'"' | b'\'') => quote = Some(b),
+            (None, b'"' | b'\'') if after_equals => quote = Some(b),
             (None, b'>') => return (k + 1, bytes[k - 1] == b'/'),
+            (None, b'=') => {
+                after_equals = true;
+                continue;
+            }
+            (None, b' ' | b'\t' | b'\n' | b'\r') if after_equals => continue,
             (None, _) => {}
         }
+        after_equals = false;
     }
     (bytes.len(), false)
 }
@@ -111,6 +122,29 @@ mod tests {
 
     fn nested(depth: usize, open: &str, close: &str) -> String {
         format!("{}{}", open.repeat(depth), close.repeat(depth))
+    }
+
+    /// A stray quote inside a tag name (a fuzz finding: `urdf-rail7-stray-quote.urdf`) does not hide the nesting that
+    /// follows; a `>` or `/>` inside an attribute value does not end the tag.
+    #[test]
+    fn stray_quotes_and_quoted_brackets_do_not_hide_nesting() {
+        let stray = format!(
+            "<robot><li'nk name='x'>{}",
+            nested(100, "<link>", "</link>")
+        );
+        assert!(matches!(
+            check_urdf_text(&stray),
+            Err(RobotError::UrdfTooDeep { .. })
+        ));
+        let quoted = nested(100, r#"<link name="/>">"#, "</link>");
+        assert!(matches!(
+            check_urdf_text(&quoted),
+            Err(RobotError::UrdfTooDeep { .. })
+        ));
+        assert_eq!(
+            check_urdf_text(r#"<robot name = 'a>b'><link name="c"/></robot>"#),
+            Ok(())
+        );
     }
 
     #[test]
