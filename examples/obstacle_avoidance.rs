@@ -10,22 +10,9 @@
 //! whose URDF gives its links collision shapes — primitives or STL/OBJ/COLLADA meshes, e.g.
 //! `assets/scenarios/obstacle_mesh_afma6.toml`, whose links are STL meshes.
 
-use servostack::report::{write_experiment, ReportError, Summary};
-use servostack::scenario::{with_joint_count, ForJointCount, Scenario};
-use std::path::{Path, PathBuf};
-
-/// `write_experiment::<N>` for the joint count of the scenario's robot.
-struct WriteExperiment<'a> {
-    scenario: &'a Scenario,
-    out: &'a Path,
-}
-
-impl ForJointCount for WriteExperiment<'_> {
-    type Output = Result<Summary, ReportError>;
-    fn call<const N: usize>(self) -> Self::Output {
-        write_experiment::<N>(self.scenario, self.out)
-    }
-}
+use servostack::report::write_scenario_experiment;
+use servostack::scenario::Scenario;
+use std::path::PathBuf;
 
 fn main() -> std::process::ExitCode {
     servostack::report::exit_code(run())
@@ -44,11 +31,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         _ => return Err("usage: obstacle_avoidance [SCENARIO.toml] [--out DIR]".into()),
     };
     let scenario = Scenario::from_file(&path)?;
-    let work = WriteExperiment {
-        scenario: &scenario,
-        out: &out,
-    };
-    let summary = with_joint_count(scenario.joint_count()?, work)??;
+    let summary = write_scenario_experiment(&scenario, &out)?;
     print!("{summary}");
     println!("figures and summary.json in {}", out.display());
     Ok(())

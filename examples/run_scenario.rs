@@ -4,22 +4,9 @@
 //! Robots with 1 to 12 joints are supported (`servostack::scenario::MAX_JOINTS`): the joint count is read from the
 //! scenario's robot.
 
-use servostack::report::{write_experiment, ReportError, Summary};
-use servostack::scenario::{with_joint_count, ForJointCount, Scenario};
-use std::path::{Path, PathBuf};
-
-/// `write_experiment::<N>` for the joint count of the scenario's robot.
-struct WriteExperiment<'a> {
-    scenario: &'a Scenario,
-    out: &'a Path,
-}
-
-impl ForJointCount for WriteExperiment<'_> {
-    type Output = Result<Summary, ReportError>;
-    fn call<const N: usize>(self) -> Self::Output {
-        write_experiment::<N>(self.scenario, self.out)
-    }
-}
+use servostack::report::write_scenario_experiment;
+use servostack::scenario::Scenario;
+use std::path::PathBuf;
 
 fn main() -> std::process::ExitCode {
     servostack::report::exit_code(run())
@@ -34,11 +21,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     };
     let scenario = Scenario::from_file(&path)?;
     let out = out.unwrap_or_else(|| PathBuf::from("target").join(&scenario.name));
-    let work = WriteExperiment {
-        scenario: &scenario,
-        out: &out,
-    };
-    let summary = with_joint_count(scenario.joint_count()?, work)??;
+    let summary = write_scenario_experiment(&scenario, &out)?;
     print!("{summary}");
     println!("figures and summary.json in {}", out.display());
     Ok(())

@@ -89,6 +89,28 @@ pub enum ReportError {
     Plot(#[from] crate::plot::PlotError),
 }
 
+/// [`write_experiment`] for the joint count of the scenario's robot, chosen at run time
+/// ([`crate::scenario::with_joint_count`]: 1 to [`crate::scenario::MAX_JOINTS`]).
+///
+/// # Errors
+/// As [`write_experiment`]; a joint count out of range.
+pub fn write_scenario_experiment(
+    scenario: &Scenario,
+    out_dir: &Path,
+) -> Result<Summary, ReportError> {
+    struct Write<'a> {
+        scenario: &'a Scenario,
+        out_dir: &'a Path,
+    }
+    impl crate::scenario::ForJointCount for Write<'_> {
+        type Output = Result<Summary, ReportError>;
+        fn call<const N: usize>(self) -> Self::Output {
+            write_experiment::<N>(self.scenario, self.out_dir)
+        }
+    }
+    crate::scenario::with_joint_count(scenario.joint_count()?, Write { scenario, out_dir })?
+}
+
 /// Runs the four runs of [theory §9](crate::theory#s9) on `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
 /// `summary.json` into `out_dir`, and returns the summary.
 ///
