@@ -34,7 +34,8 @@
 //!      lower threshold than the removal's);
 //!    * when no removed task can come back, the next task of the list is **pushed** if one remains (the paper's `e4`
 //!      achieved while `e3` is out); otherwise a **swap** is tried: a removed task back and a stacked one out in one
-//!      transition, if the prediction with that exchange passes the same test;
+//!      transition, if the prediction with that exchange passes the same test and the exchange is not the reverse of
+//!      the last swap (**anti-cycling**: two tasks traded back and forth is chatter);
 //!    * if a removed task is still refused `stall_timeout` seconds after its first refused test, the controller
 //!      **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
 //!      — from there on the law is the stack with projected gradient. The event log says so
@@ -501,6 +502,8 @@ pub struct StackController<const N: usize> {
     /// One decomposition per task, each warm-started from the same task's previous criteria.
     svds: Vec<ColumnSvd<N>>,
     events: Vec<StackEvent>,
+    /// The last D7 swap made, `(back, out)`: the next swap may not be its reverse `(out, back)` (anti-cycling).
+    last_swap: Option<(usize, usize)>,
 }
 
 /// What the prediction of D6 needs: the configuration, the velocity sent, the gradient, the horizon and `μ`.
@@ -563,6 +566,7 @@ impl<const N: usize> StackController<N> {
             jacobian_work: TaskJacobian::zeros(max_rows),
             svds: vec![ColumnSvd::default(); count],
             events: Vec::with_capacity(4 * count + 8),
+            last_swap: None,
         })
     }
 
@@ -1109,6 +1113,7 @@ impl<const N: usize> StackController<N> {
             if let Some((back, out, predicted_cost)) =
                 self.find_swap(law, tasks, cost, prediction, threshold, time)?
             {
+                self.last_swap = Some((back, out));
                 // One transition: `back` returns at its priority and `out` leaves (the configuration has changed since
                 // `back` was removed, and now `out` is the task in the way).
                 self.reinsert(
@@ -1169,8 +1174,9 @@ impl<const N: usize> StackController<N> {
         Ok(None)
     }
 
-    /// D7 swap: a removed task `back` (dwell over) and a stacked task `out` (removable) such that the stack with `back`
-    /// in and `out` out keeps the prediction over `n_back/λ_back` below the re-insertion threshold.
+    /// D7 swap: a removed task `back` (dwell over) and a stacked task `out` (removable), not the reverse of the last
+    /// swap, such that the stack with `back` in and `out` out keeps the prediction over `n_back/λ_back` below the
+    /// re-insertion threshold.
     fn find_swap(
         &mut self,
         law: &ControlLaw,
@@ -1190,6 +1196,10 @@ impl<const N: usize> StackController<N> {
             }
             for out_rank in 0..self.stacked.len() {
                 let out = self.stacked[out_rank];
+                // Never the reverse of the last swap: two tasks traded back and forth is chatter, not progress.
+                if self.last_swap == Some((out, back)) {
+                    continue;
+                }
                 if self.protected[out] || self.removal_count[out] >= self.parameters.max_removals {
                     continue;
                 }

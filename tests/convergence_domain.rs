@@ -165,3 +165,28 @@ fn invalid_study_parameters_are_named() {
         })
     ));
 }
+
+/// D7 anti-cycling: on the 7-joint chain, where `a_n` and the third-order task block each other in turn, a swap is
+/// never undone by the next one, so tasks are not traded back and forth until their removal budgets run out: the
+/// median run removes at most two tasks, and every draw still converges.
+#[test]
+fn on_the_seven_joint_chain_swaps_do_not_cycle() {
+    let scenario = scenario("rail7_limits");
+    let study = Study::new(&scenario, families(&["mild", "view_10deg"]), 6, 3)
+        .unwrap()
+        .with_methods(&[RunKind::StackController]);
+    let result = study.run::<7>().unwrap();
+    for family in &result.families {
+        let full = &family.methods[0];
+        assert_eq!(
+            full.converged, full.draws,
+            "{}: {full:?}",
+            family.family.name
+        );
+        assert!(
+            full.median_removals <= 2.0,
+            "{}: {full:?}",
+            family.family.name
+        );
+    }
+}

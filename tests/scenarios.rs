@@ -28,7 +28,7 @@ fn full_method_on_the_six_revolute_arm_converges() {
 }
 
 /// The limit story of a scenario file: the classical law stops at the limit of `joint`; the full method removes a task
-/// and later re-inserts that same task (without falling back), then converges with every task stacked, inside the
+/// and later re-inserts that same task (by the test, not by a fallback), then converges with every task stacked, inside the
 /// limits. Returns the four runs for scenario-specific checks.
 fn limit_story<const N: usize>(file: &str, joint: usize) -> Vec<Run<N>> {
     let scenario = Scenario::from_file(&assets().join(file)).unwrap();
@@ -51,11 +51,13 @@ fn limit_story<const N: usize>(file: &str, joint: usize) -> Vec<Run<N>> {
     );
     assert!(full.final_error_norm().unwrap() < 4.0 * scenario.simulation.convergence_error);
     assert!(full.min_normalized_margin() > 0.0, "{file}: full method");
-    assert_eq!(full.events_of(EventKind::Fallback).count(), 0, "{file}");
     let removal = full
         .events_of(EventKind::Remove)
         .next()
         .unwrap_or_else(|| panic!("{file}: the full method should remove a task"));
+    // Put back by the re-insertion test (a `Reinsert`), not by the fallback: another task may still end its run with
+    // a fallback (D13), as the third-order task does on `rail7` once the swap that let the first task back may not be
+    // reversed (D7 anti-cycling).
     assert!(
         full.events_of(EventKind::Reinsert)
             .any(|e| e.task == removal.task && e.iteration > removal.iteration),
