@@ -53,6 +53,7 @@ use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
 use crate::robot::{builtin, RobotError, SerialChain};
+use crate::servo::AdaptiveGain;
 use crate::sim::{
     simulate_with, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
 };
@@ -320,6 +321,24 @@ pub struct TasksSpec {
     /// velocity near singular configurations, at the price of a small bias there.
     #[serde(default)]
     pub damping: f64,
+    /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's gain, the classical task's included (the servo façade's
+    /// [`AdaptiveGain`]); absent: the constant gains above. A gain that is lower at the goal than far from it
+    /// (`at_zero < at_infinity`, a negative `slope_at_zero`) averages pixel noise over a longer time near the goal.
+    #[serde(default)]
+    pub adaptive_gain: Option<AdaptiveGainSpec>,
+}
+
+/// [`AdaptiveGain::new`]'s three parameters as written in files: `λ(x) = a e^{−b x} + c`, `a = λ(0) − λ(∞)`,
+/// `b = λ'(0)/a`, `c = λ(∞)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdaptiveGainSpec {
+    /// `λ(0)` (s⁻¹, > 0): the gain at the goal.
+    pub at_zero: f64,
+    /// `λ(∞)` (s⁻¹, > 0): the gain far from it.
+    pub at_infinity: f64,
+    /// `λ'(0)` (s⁻¹ per unit of `‖e‖∞`), of the sign of `λ(0) − λ(∞)`.
+    pub slope_at_zero: f64,
 }
 
 /// The interaction source as written in files.
@@ -548,6 +567,7 @@ impl Scenario {
     /// The first invalid field: an unknown robot, a joint vector of the wrong size or outside the limits, invalid
     /// intrinsics, target, poses, gains or thresholds.
     pub fn experiment<const N: usize>(&self) -> Result<Experiment<N>, ScenarioError> {
+        self.adaptive_gain()?;
         let (chain, camera) = self.robot_model::<N>()?;
         let desired_joints = joints::<N>("desired.joints", &self.desired.joints)?;
         let start = joints::<N>("start.joints", &self.start.joints)?;
@@ -605,6 +625,9 @@ impl Scenario {
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
+        self.simulation
+            .validate()
+            .map_err(|e| invalid("simulation", e.to_string()))?;
         let mut workspace = crate::robot::KinematicsWorkspace::new();
         let visible = match scene.observe(&mut workspace, &start) {
             Ok(view) => scene
@@ -867,8 +890,10 @@ impl Scenario {
         let sensing = sensing.map(|s| s.with_true_tasks(&true_tasks));
         let avoid = matches!(kind, RunKind::StackGradient | RunKind::StackController);
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
-        let max_gain = match kind {
-            RunKind::Classical => self.tasks.classical_gain,
+        let adaptive_gain = self.adaptive_gain()?;
+        let max_gain = match (kind, adaptive_gain) {
+            (_, Some(adaptive)) => adaptive.max_gain(),
+            (RunKind::Classical, None) => self.tasks.classical_gain,
             _ => self.tasks.gains.iter().copied().fold(0.0, f64::max),
         };
         let mu = self
@@ -902,6 +927,7 @@ impl Scenario {
                 &[]
             },
             sensing: sensing.as_ref(),
+            adaptive_gain,
         };
         Ok(simulate_with(
             &experiment.scene,
@@ -915,6 +941,26 @@ impl Scenario {
 }
 
 impl Scenario {
+    /// `tasks.adaptive_gain`, checked: both gains in [`crate::bounds::GAIN_PER_S`] and [`AdaptiveGain::new`]'s rules.
+    fn adaptive_gain(&self) -> Result<Option<AdaptiveGain>, ScenarioError> {
+        let Some(spec) = self.tasks.adaptive_gain else {
+            return Ok(None);
+        };
+        let field = "tasks.adaptive_gain";
+        for (name, gain) in [("at_zero", spec.at_zero), ("at_infinity", spec.at_infinity)] {
+            if !crate::bounds::GAIN_PER_S.contains(gain) {
+                let expected = crate::bounds::GAIN_PER_S.text;
+                return Err(invalid(
+                    field,
+                    format!("{name} = {gain}: expected {expected}"),
+                ));
+            }
+        }
+        AdaptiveGain::new(spec.at_zero, spec.at_infinity, spec.slope_at_zero)
+            .map(Some)
+            .map_err(|e| invalid(field, e.to_string()))
+    }
+
     /// The controller's view of the camera when the scenario's camera is not exact or names a depth source: the
     /// desired image points read through the nominal camera (pixels of the true camera, normalised by the believed
     /// intrinsics and undistortion), with their desired depths.

@@ -43,6 +43,7 @@ use crate::measurement::{
     perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
 };
 use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
+use crate::servo::AdaptiveGain;
 use crate::target::{RectangleTarget, TargetError, TargetPlane};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{VisualContext, VisualTask};
@@ -287,8 +288,13 @@ pub struct SimulationParameters {
     pub period: f64,
     /// The iteration budget.
     pub max_iterations: usize,
-    /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task.
+    /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task (the noise-free
+    /// errors when the camera is not exact), and has stayed so for `convergence_hold_s`.
     pub convergence_error: f64,
+    /// How long (s, ≥ 0; default 0: the first period below) the task errors must stay below `convergence_error` for
+    /// the run to count as converged: with pixel noise the errors first cross the threshold while the camera still
+    /// moves, and "settled" means staying below.
+    pub convergence_hold_s: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
     /// The robot's velocity limit of a prismatic joint (m/s, > 0; default `+∞`: none). The controller's velocity is
@@ -309,6 +315,7 @@ impl Default for SimulationParameters {
             period: 0.01,
             max_iterations: 10_000,
             convergence_error: 1e-4,
+            convergence_hold_s: 0.0,
             image_margin: 0.0,
             max_prismatic_velocity_m_s: f64::INFINITY,
             max_revolute_velocity_rad_s: f64::INFINITY,
@@ -318,7 +325,11 @@ impl Default for SimulationParameters {
 }
 
 impl SimulationParameters {
-    fn validate(&self) -> Result<(), SimError> {
+    /// Checks every parameter.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`], naming the parameter.
+    pub fn validate(&self) -> Result<(), SimError> {
         let invalid = |name, value, expected| {
             Err(SimError::InvalidParameter {
                 name,
@@ -334,6 +345,13 @@ impl SimulationParameters {
                 "convergence_error",
                 self.convergence_error,
                 "finite and > 0",
+            );
+        }
+        if !crate::bounds::DURATION_S.contains(self.convergence_hold_s) {
+            return invalid(
+                "convergence_hold_s",
+                self.convergence_hold_s,
+                crate::bounds::DURATION_S.text,
             );
         }
         if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
@@ -1033,6 +1051,9 @@ pub struct Drive<'a> {
     pub protected_tasks: &'a [usize],
     /// What the controller sees; `None`: the true image and depths.
     pub sensing: Option<&'a Sensing<'a>>,
+    /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's gain at every period (as the servo façade's); `None`: the
+    /// tasks' constant gains.
+    pub adaptive_gain: Option<AdaptiveGain>,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget, and keeps every record
@@ -1140,6 +1161,8 @@ pub fn simulate_with<const N: usize>(
         Ok::<_, SimError>(())
     };
     let mut outcome = None;
+    // The time the task errors went below the convergence threshold and have stayed there since.
+    let mut below_since: Option<f64> = None;
     for iteration in 0..parameters.max_iterations {
         let time = iteration as f64 * parameters.period;
         let view = match scene.observe(&mut workspace, &q) {
@@ -1217,15 +1240,26 @@ pub fn simulate_with<const N: usize>(
             image: view.points,
             obstacle_distance: closest.as_ref().map(|(_, _, d)| *d),
         };
-        if controller.is_complete()
+        let below = controller.is_complete()
             && record
                 .task_errors
                 .iter()
-                .all(|&e| e < parameters.convergence_error)
-        {
+                .all(|&e| e < parameters.convergence_error);
+        below_since = if below {
+            below_since.or(Some(time))
+        } else {
+            None
+        };
+        if below_since.is_some_and(|since| time - since >= parameters.convergence_hold_s) {
             keep(record, controller.events())?;
             outcome = Some(Outcome::Converged);
             break;
+        }
+        if let Some(adaptive) = &drive.adaptive_gain {
+            for (task, value) in tasks.iter().zip(values.iter_mut()) {
+                let gain = adaptive.value(value.error().amax());
+                value.set_gain(Task::<N, VisualContext<'_, N>>::name(task), gain)?;
+            }
         }
         let step =
             match controller.step_guarded(drive.law, &values, cost, guard, &q, iteration, time) {

@@ -189,6 +189,94 @@ fn invalid_values_are_named() {
 }
 
 #[test]
+fn bad_adaptive_gains_are_named() {
+    let line = "gains = [0.6, 0.6, 0.6, 0.6]";
+    for (gain, what) in [
+        (
+            "at_zero = -0.1, at_infinity = 0.6, slope_at_zero = -5.0",
+            "at_zero",
+        ),
+        (
+            "at_zero = 0.1, at_infinity = 1e9, slope_at_zero = -5.0",
+            "at_infinity",
+        ),
+        (
+            "at_zero = 0.1, at_infinity = 0.6, slope_at_zero = 5.0",
+            "sign",
+        ),
+        (
+            "at_zero = 0.1, at_infinity = 0.6, slope_at_zero = nan",
+            "finite",
+        ),
+    ] {
+        let message = error_of(&edited(
+            line,
+            &format!("{line}\nadaptive_gain = {{ {gain} }}"),
+        ));
+        assert!(
+            message.contains("tasks.adaptive_gain") && message.contains(what),
+            "{gain}: {message}"
+        );
+    }
+}
+
+/// `tasks.adaptive_gain` drives the tasks: a gain twice the constant one everywhere (`λ(0) = λ(∞)`) converges in
+/// about half the time, and a gain lower at the goal than far from it in more time than the constant one.
+#[test]
+fn the_adaptive_gain_sets_the_tasks_pace() {
+    let line = "gains = [0.6, 0.6, 0.6, 0.6]";
+    let iterations = |text: &str| {
+        let scenario = Scenario::from_toml_str(text, Some(assets())).unwrap();
+        let run = scenario.run::<6>(RunKind::StackController).unwrap();
+        assert_eq!(run.outcome, Outcome::Converged, "{text}");
+        run.iterations() as f64
+    };
+    let constant = iterations(UR5E);
+    let doubled = iterations(&edited(
+        line,
+        &format!(
+            "{line}\nadaptive_gain = {{ at_zero = 1.2, at_infinity = 1.2, slope_at_zero = 0.0 }}"
+        ),
+    ));
+    let slow_at_goal = iterations(&edited(
+        line,
+        &format!(
+            "{line}\nadaptive_gain = {{ at_zero = 0.2, at_infinity = 0.6, slope_at_zero = -20.0 }}"
+        ),
+    ));
+    let ratio = doubled / constant;
+    assert!((0.4..0.65).contains(&ratio), "{doubled} / {constant}");
+    assert!(
+        slow_at_goal > 1.3 * constant,
+        "{slow_at_goal} vs {constant}"
+    );
+}
+
+/// `simulation.convergence_hold_s`: a run converges once its errors have stayed below the threshold that long — the
+/// errors of a noise-free run only decrease, so it ends the hold's length later, and the hold is checked.
+#[test]
+fn convergence_waits_for_the_hold() {
+    let line = "convergence_error = 1e-4";
+    let run = |text: &str| {
+        let scenario = Scenario::from_toml_str(text, Some(assets())).unwrap();
+        let run = scenario.run::<6>(RunKind::StackController).unwrap();
+        assert_eq!(run.outcome, Outcome::Converged);
+        (run.iterations(), scenario.simulation.period)
+    };
+    let (at_once, period) = run(UR5E);
+    let (held, _) = run(&edited(line, &format!("{line}\nconvergence_hold_s = 1.5")));
+    let waited = (held - at_once) as f64 * period;
+    assert!((waited - 1.5).abs() <= 1.5 * period, "waited {waited} s");
+    for bad in ["-1.0", "nan", "1e9"] {
+        let message = error_of(&edited(
+            line,
+            &format!("{line}\nconvergence_hold_s = {bad}"),
+        ));
+        assert!(message.contains("convergence_hold_s"), "{bad}: {message}");
+    }
+}
+
+#[test]
 fn bad_joint_limit_overrides_are_named() {
     let limits = |lower: &str, upper: &str| {
         edited(
