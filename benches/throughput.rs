@@ -5,10 +5,11 @@
 //!   (`available_parallelism`). One JSON line per pool: draws, simulated control iterations, seconds, draws/s,
 //!   iterations/s; a last line gives the scaling (rate on all cores / rate on one).
 //! * `sim_overhead`: the full method (`StackController`) on the paper scenario through `Scenario::run_experiment`
-//!   (simulation: sensing, tasks, controller, saturation, log), ns per simulated iteration, beside the controller step of
+//!   (simulation: sensing, tasks, controller, saturation, every record kept) and through
+//!   `Scenario::run_experiment_with` and a `SummaryOnly` log (as the study runs it), ns per simulated iteration, beside the controller step of
 //!   the `control_loop` bench (`step/paper_four_tasks_controller`: observation, the four paper tasks, controller with
 //!   avoidance, prediction and criteria, Euler step; no log, no saturation) on the peer scene, ns per step, and the
-//!   overhead `sim / step − 1`. The two runs visit different configurations (the scenario's episode against the peer
+//!   overheads `sim / step − 1`. The two runs visit different configurations (the scenario's episode against the peer
 //!   episode), so the overhead is indicative; the best of [`REPEATS`] runs of each.
 //!
 //! Run with `cargo bench --bench throughput` (both) or `cargo bench --bench throughput -- study` (one). Under
@@ -19,6 +20,7 @@ mod servo_loop;
 
 use servo_loop::ServoLoop;
 use servostack::scenario::{RunKind, Scenario};
+use servostack::sim::SummaryOnly;
 use servostack::study::{standard_families, Study};
 use std::path::Path;
 use std::time::Instant;
@@ -66,17 +68,30 @@ fn study(draws: usize) {
 fn sim_overhead(repeats: usize) {
     let scenario = scenario();
     let experiment = scenario.experiment::<6>().expect("experiment");
-    let mut sim_ns = f64::INFINITY;
+    // ns per simulated iteration, best of `repeats`, with every record kept or with the summary only.
     let mut iterations = 0;
-    for _ in 0..repeats {
-        let start = Instant::now();
-        let run = scenario
-            .run_experiment(&experiment, RunKind::StackController)
+    let mut per_iteration = |keep_records: bool| {
+        let mut best = f64::INFINITY;
+        for _ in 0..repeats {
+            let start = Instant::now();
+            let run = if keep_records {
+                scenario.run_experiment(&experiment, RunKind::StackController)
+            } else {
+                scenario.run_experiment_with(
+                    &experiment,
+                    RunKind::StackController,
+                    &mut SummaryOnly,
+                )
+            }
             .expect("run");
-        let elapsed = start.elapsed().as_nanos() as f64;
-        iterations = run.iterations();
-        sim_ns = sim_ns.min(elapsed / iterations as f64);
-    }
+            let elapsed = start.elapsed().as_nanos() as f64;
+            iterations = run.iterations();
+            best = best.min(elapsed / iterations as f64);
+        }
+        best
+    };
+    let sim_ns = per_iteration(true);
+    let summary_ns = per_iteration(false);
     let mut servo = ServoLoop::paper();
     let mut step_ns = f64::INFINITY;
     for _ in 0..repeats {
@@ -89,8 +104,9 @@ fn sim_overhead(repeats: usize) {
         step_ns = step_ns.min(start.elapsed().as_nanos() as f64 / EPISODE as f64);
     }
     println!(
-        "{{\"bench\": \"sim_overhead\", \"sim_iterations\": {iterations}, \"sim_ns_per_iteration\": {sim_ns:.0}, \"controller_step_ns\": {step_ns:.0}, \"overhead\": {:.2}}}",
-        sim_ns / step_ns - 1.0
+        "{{\"bench\": \"sim_overhead\", \"sim_iterations\": {iterations}, \"sim_ns_per_iteration\": {sim_ns:.0}, \"summary_only_ns_per_iteration\": {summary_ns:.0}, \"controller_step_ns\": {step_ns:.0}, \"overhead\": {:.2}, \"overhead_summary_only\": {:.2}}}",
+        sim_ns / step_ns - 1.0,
+        summary_ns / step_ns - 1.0
     );
 }
 

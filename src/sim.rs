@@ -474,6 +474,26 @@ pub struct Record<const N: usize> {
     pub obstacle_distance: Option<f64>,
 }
 
+impl<const N: usize> Record<N> {
+    /// A record with empty buffers, filled by the simulation.
+    fn empty() -> Self {
+        Self {
+            iteration: 0,
+            time: 0.0,
+            q: JointVector::zeros(),
+            velocity: JointVector::zeros(),
+            sent: false,
+            task_errors: Vec::new(),
+            stacked: Vec::new(),
+            cost: 0.0,
+            predicted_cost: 0.0,
+            criteria: Vec::new(),
+            image: [ImagePoint::default(); 4],
+            obstacle_distance: None,
+        }
+    }
+}
+
 /// Continuity of the velocity sent at one stack change (D14), from [`Run::event_continuity`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct EventContinuity {
@@ -1152,7 +1172,10 @@ pub fn simulate_with<const N: usize>(
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
     let mut closest = closest_obstacle(scene, &q)?;
     let mut totals = Totals::new(&scene.limits, start);
-    let mut keep = |record: Record<N>, events: &[StackEvent]| {
+    let keep = |totals: &mut Totals<N>,
+                log: &mut dyn RunLog<N>,
+                record: Record<N>,
+                events: &[StackEvent]| {
         log.record(&record).map_err(|message| SimError::Log {
             iteration: record.iteration,
             message,
@@ -1225,21 +1248,24 @@ pub fn simulate_with<const N: usize>(
         } else {
             &values
         };
-        let task_errors: Vec<f64> = truth.iter().map(|v| v.error().norm()).collect();
-        let mut record = Record {
-            iteration,
-            time,
-            q,
-            velocity: JointVector::zeros(),
-            sent: false,
-            task_errors,
-            stacked: controller.stacked().to_vec(),
-            cost: scene.limits.value(&q)?,
-            predicted_cost: 0.0,
-            criteria: Vec::new(),
-            image: view.points,
-            obstacle_distance: closest.as_ref().map(|(_, _, d)| *d),
-        };
+        // The previous record's buffers are reused (the log has its own copy): no allocation per iteration here.
+        let mut record = totals.last.take().unwrap_or_else(Record::empty);
+        record.iteration = iteration;
+        record.time = time;
+        record.q = q;
+        record.velocity = JointVector::zeros();
+        record.sent = false;
+        record.task_errors.clear();
+        record
+            .task_errors
+            .extend(truth.iter().map(|v| v.error().norm()));
+        record.stacked.clear();
+        record.stacked.extend_from_slice(controller.stacked());
+        record.cost = scene.limits.value(&q)?;
+        record.predicted_cost = 0.0;
+        record.criteria.clear();
+        record.image = view.points;
+        record.obstacle_distance = closest.as_ref().map(|(_, _, d)| *d);
         let below = controller.is_complete()
             && record
                 .task_errors
@@ -1251,7 +1277,7 @@ pub fn simulate_with<const N: usize>(
             None
         };
         if below_since.is_some_and(|since| time - since >= parameters.convergence_hold_s) {
-            keep(record, controller.events())?;
+            keep(&mut totals, log, record, controller.events())?;
             outcome = Some(Outcome::Converged);
             break;
         }
@@ -1268,7 +1294,7 @@ pub fn simulate_with<const N: usize>(
                 // feature is lost, as when the camera itself gets there.
                 Err(error) => match point_behind_camera(&error) {
                     Some(point) => {
-                        keep(record, controller.events())?;
+                        keep(&mut totals, log, record, controller.events())?;
                         outcome = Some(Outcome::FeatureLost { point });
                         break;
                     }
@@ -1284,7 +1310,7 @@ pub fn simulate_with<const N: usize>(
         record.stacked.clear();
         record.stacked.extend_from_slice(controller.stacked());
         record.predicted_cost = step.predicted_cost;
-        record.criteria = controller.criteria().to_vec();
+        record.criteria.extend_from_slice(controller.criteria());
         if let Some(sensing) = &mut sensing {
             let believed_jacobian =
                 believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)?;
@@ -1294,19 +1320,22 @@ pub fn simulate_with<const N: usize>(
         let hit = scene.limits.violated_joint(&q);
         closest = closest_obstacle(scene, &q)?;
         let contact = closest.clone().filter(|(_, _, d)| *d <= 0.0);
-        let stacked = record.stacked.clone();
-        keep(record, controller.events())?;
-        if let Some(joint) = hit {
-            outcome = Some(Outcome::JointLimit { joint, stacked });
-            break;
-        }
-        if let Some((link, obstacle, distance)) = contact {
-            outcome = Some(Outcome::Collision {
+        let ended = match (hit, contact) {
+            (Some(joint), _) => Some(Outcome::JointLimit {
+                joint,
+                stacked: record.stacked.clone(),
+            }),
+            (None, Some((link, obstacle, distance))) => Some(Outcome::Collision {
                 link,
                 obstacle,
                 distance,
-                stacked,
-            });
+                stacked: record.stacked.clone(),
+            }),
+            (None, None) => None,
+        };
+        keep(&mut totals, log, record, controller.events())?;
+        if ended.is_some() {
+            outcome = ended;
             break;
         }
     }

@@ -434,7 +434,14 @@ impl<'a> Study<'a> {
                 };
                 self.methods
                     .iter()
-                    .map(|&method| Ok(scenario.run_experiment(&experiment, method)?.outcome.name()))
+                    .map(|&method| {
+                        let run = scenario.run_experiment_with(
+                            &experiment,
+                            method,
+                            &mut crate::sim::SummaryOnly,
+                        )?;
+                        Ok(run.outcome.name())
+                    })
                     .collect()
             })
             .collect::<Result<_, StudyError>>()?;
@@ -517,7 +524,9 @@ impl<'a> Study<'a> {
         scenario.measurement.seed = self.stream(index, draw).random();
         let mut methods = Vec::with_capacity(self.methods.len());
         for &method in &self.methods {
-            let run = scenario.run_experiment(&experiment, method)?;
+            // The study reads the run's summary only: no record is kept.
+            let run =
+                scenario.run_experiment_with(&experiment, method, &mut crate::sim::SummaryOnly)?;
             methods.push(method_result(method, &run, &experiment)?);
         }
         Ok(DrawResult {
