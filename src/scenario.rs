@@ -625,9 +625,7 @@ impl Scenario {
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
-        self.simulation
-            .validate()
-            .map_err(|e| invalid("simulation", e.to_string()))?;
+        self.simulation.validate()?;
         let mut workspace = crate::robot::KinematicsWorkspace::new();
         let visible = match scene.observe(&mut workspace, &start) {
             Ok(view) => scene

@@ -6,7 +6,7 @@
 use servostack::depth::DepthSource;
 use servostack::robot::KinematicsWorkspace;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
-use servostack::sim::Outcome;
+use servostack::sim::{Outcome, SimError};
 use servostack::study::{standard_families, Study};
 use std::path::Path;
 
@@ -139,12 +139,8 @@ fn invalid_velocity_limits_are_named() {
         }
         // Checked with the scenario, before any run.
         match scenario.experiment::<6>() {
-            Err(error @ ScenarioError::Invalid { .. }) => {
-                let message = error.to_string();
-                assert!(
-                    message.contains("simulation") && message.contains(field),
-                    "{message}"
-                );
+            Err(ScenarioError::Simulation(SimError::InvalidParameter { name, .. })) => {
+                assert_eq!(name, field)
             }
             other => panic!("{field} = {value}: {:?}", other.map(|_| ())),
         }
