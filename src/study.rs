@@ -776,8 +776,8 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>8} {:>9}",
-            "removals", "fallback", "covered", "worse"
+            " {:>10} {:>9} {:>8} {:>9} {:>9}",
+            "removals", "fallback", "covered", "worse", "pose"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -790,20 +790,26 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>8} {:>9}",
+                " {:>10} {:>9} {:>8} {:>9} {:>9}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
                 format!(
                     "{}/{}",
                     family.full_method_also_converged, family.any_baseline_converged
                 ),
-                family.full_method_worse_than_stack_gradient
+                family.full_method_worse_than_stack_gradient,
+                full.map_or("-".into(), |m| m
+                    .converged_within_pose_tolerance
+                    .to_string())
             )?;
         }
         writeln!(
             f,
             "removals: median per run of the full method; covered: draws where the full method converged among those \
-             where a baseline did; worse: draws where stack_gradient converged and the full method did not"
+             where a baseline did; worse: draws where stack_gradient converged and the full method did not; pose: \
+             converged runs of the full method whose camera ended within {} mm / {}° of its goal",
+            POSE_TOLERANCE_M * 1e3,
+            POSE_TOLERANCE_DEG
         )?;
         let rate = self.iterations as f64 / self.seconds.max(1e-9);
         writeln!(
