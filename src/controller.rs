@@ -70,7 +70,7 @@ use crate::bounds::DURATION_S;
 use crate::law::{
     control_step, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
 };
-use crate::linalg::{ColumnSvd, VelocityInverse};
+use crate::linalg::{solve_small_full_row_rank, ColumnSvd, VelocityInverse};
 use crate::math::JointVector;
 use crate::stack::{solve_stack, StackError, StackWorkspace};
 use crate::task::{TaskJacobian, TaskValue};
@@ -1270,25 +1270,37 @@ impl<const N: usize> StackController<N> {
             let (Some(task), Some(svd)) = (tasks.get(index), self.svds.get_mut(index)) else {
                 continue;
             };
-            let rows = task.rows();
-            let mut work = self.jacobian_work.rows_mut(0, rows);
-            work.copy_from(task.jacobian());
-            let linalg = |source| {
-                ControllerError::Law(LawError::Stack(StackError::Linalg {
-                    level: index,
-                    source,
-                }))
-            };
-            svd.decompose_warm(&mut work, &policy, 0.0)
-                .map_err(linalg)?;
             let mut direction = JointVector::zeros(); // J_i⁺ e_i
-            svd.solve(
-                &work,
+                                                      // A one- or two-row task of full, well-conditioned rank in closed form; otherwise the SVD.
+            let c2_prime = match solve_small_full_row_rank(
+                task.jacobian(),
                 task.error(),
-                VelocityInverse::Truncated,
+                gradient,
+                &policy,
                 &mut direction,
-            )
-            .map_err(linalg)?;
+            ) {
+                Some(c2_prime) => c2_prime,
+                None => {
+                    let mut work = self.jacobian_work.rows_mut(0, task.rows());
+                    work.copy_from(task.jacobian());
+                    let linalg = |source| {
+                        ControllerError::Law(LawError::Stack(StackError::Linalg {
+                            level: index,
+                            source,
+                        }))
+                    };
+                    svd.decompose_warm(&mut work, &policy, 0.0)
+                        .map_err(linalg)?;
+                    svd.solve(
+                        &work,
+                        task.error(),
+                        VelocityInverse::Truncated,
+                        &mut direction,
+                    )
+                    .map_err(linalg)?;
+                    svd.row_space_component_norm(gradient)
+                }
+            };
             let c1 = -direction.dot(gradient);
             let direction_norm = direction.norm();
             let c1_normalized = if direction_norm > DIRECTION_FLOOR {
@@ -1296,7 +1308,6 @@ impl<const N: usize> StackController<N> {
             } else {
                 0.0
             };
-            let c2_prime = svd.row_space_component_norm(gradient);
             let c2 = (gradient_norm * gradient_norm - c2_prime * c2_prime)
                 .max(0.0)
                 .sqrt();

@@ -184,3 +184,78 @@ fn cholesky_inverse<const N: usize>(g: &[[f64; N]; N]) -> Option<[[f64; N]; N]> 
     }
     Some(inverse)
 }
+
+/// The largest condition number `σ_max/σ_min` for which [`solve_small_full_row_rank`] answers: the Gram matrix then
+/// has `κ(G) ≤ 10⁴`, and its closed-form inverse agrees with the SVD's pseudo-inverse within `10⁻¹¹` relative.
+pub const SMALL_PATH_CONDITION_BOUND: f64 = 1e2;
+
+/// For a matrix `A` of **one or two rows** (`1 × N` or `2 × N`) certified to have full row rank under `policy`, well
+/// conditioned: `x = A⁺ e` into `out`, and `‖A⁺A g‖`, the norm of the component of `g` in the row space of `A`; `None`
+/// otherwise (another number of rows, rank deficiency, `σ_max/σ_min > SMALL_PATH_CONDITION_BOUND`, a singular value
+/// within a factor 2 of the rank threshold, non-finite data): the caller then takes the SVD.
+///
+/// ```text
+/// G = A Aᵀ (1 × 1 or 2 × 2),   x = Aᵀ G⁻¹ e,   ‖A⁺A g‖² = (A g)ᵀ G⁻¹ (A g)
+/// ```
+///
+/// The eigenvalues of the symmetric `G` are the squared singular values of `A`, in closed form
+/// (`λ± = (a + c)/2 ± √(((a − c)/2)² + b²)`); the rank decision is the SVD's (`σ > policy.threshold(σ_max)`) with a
+/// factor 2 of margin, so the truncated pseudo-inverse is the plain `Aᵀ G⁻¹`. Used for the removal criteria of the
+/// one- and two-row visual tasks, where it replaces one SVD per task and period. Allocates nothing; `out` is written
+/// only on success.
+pub fn solve_small_full_row_rank<const N: usize, R, S, SE>(
+    a: &Matrix<f64, R, Const<N>, S>,
+    e: &Vector<f64, R, SE>,
+    g: &JointVector<N>,
+    policy: &RankPolicy,
+    out: &mut JointVector<N>,
+) -> Option<f64>
+where
+    R: Dim,
+    S: RawStorage<f64, R, Const<N>>,
+    SE: RawStorage<f64, R>,
+{
+    if e.nrows() != a.nrows() {
+        return None;
+    }
+    let row = |i: usize| JointVector::<N>::from_fn(|k, _| a[(i, k)]);
+    let certified = |sigma_min: f64, sigma_max: f64| {
+        sigma_min.is_finite()
+            && sigma_min * SMALL_PATH_CONDITION_BOUND >= sigma_max
+            && sigma_min > 2.0 * policy.threshold(sigma_max)
+    };
+    match a.nrows() {
+        1 => {
+            let r0 = row(0);
+            let squared = r0.norm_squared();
+            let sigma = squared.sqrt();
+            if !(certified(sigma, sigma) && e[0].is_finite()) {
+                return None;
+            }
+            *out = r0 * (e[0] / squared);
+            Some(r0.dot(g).abs() / sigma)
+        }
+        2 => {
+            let (r0, r1) = (row(0), row(1));
+            let (p, b, c) = (r0.norm_squared(), r0.dot(&r1), r1.norm_squared());
+            let half_gap = (0.5 * (p - c)).hypot(b);
+            let mean = 0.5 * (p + c);
+            let (largest, smallest) = (mean + half_gap, mean - half_gap);
+            if !(smallest > 0.0 && certified(smallest.sqrt(), largest.sqrt())) {
+                return None;
+            }
+            // G⁻¹ = [c −b; −b p] / det, det = λ₊ λ₋ (both eigenvalues well away from 0 here).
+            let det = largest * smallest;
+            let solve = |u: f64, v: f64| ((c * u - b * v) / det, (p * v - b * u) / det);
+            let (y0, y1) = solve(e[0], e[1]);
+            if !(y0.is_finite() && y1.is_finite()) {
+                return None;
+            }
+            *out = r0 * y0 + r1 * y1;
+            let (w0, w1) = (r0.dot(g), r1.dot(g));
+            let (z0, z1) = solve(w0, w1);
+            Some((w0 * z0 + w1 * z1).max(0.0).sqrt())
+        }
+        _ => None,
+    }
+}

@@ -370,3 +370,55 @@ fn fast_path_defers_the_rank_decision_to_the_svd() {
     broken[(3, 2)] = f64::NAN;
     assert!(solve_full_column_rank(&broken, &r, &RankPolicy::default(), 0.0, &mut out).is_none());
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// The closed form for one- and two-row matrices against the SVD: where it answers, `A⁺e` and `‖A⁺A g‖` agree with
+    /// the SVD's to `1e−11` (relative to `‖e‖/σ_min` and `‖g‖`); it answers for every well-conditioned matrix and for
+    /// none whose second row is (nearly) a multiple of the first.
+    #[test]
+    fn small_full_row_rank_matches_the_svd(
+        rows in 1usize..3,
+        data in matrix_strategy::<6>(2),
+        e in proptest::collection::vec(-1.0..1.0f64, 2),
+        g in proptest::collection::vec(-1.0..1.0f64, 6),
+        scale_exponent in -3.0..3.0f64,
+        dependence in prop_oneof![Just(0.0), 1e-9..1e-3f64],
+    ) {
+        let mut a = data.rows(0, rows).into_owned() * 10f64.powf(scale_exponent);
+        if rows == 2 && dependence > 0.0 {
+            // Second row = first + a small perturbation: σ_min/σ_max ≈ dependence.
+            let first = a.row(0).into_owned();
+            let perturbation = a.row(1).into_owned() * dependence;
+            a.set_row(1, &(first + perturbation));
+        }
+        let e = DVector::from_column_slice(&e[..rows]);
+        let g = JointVector::<6>::from_column_slice(&g);
+        let policy = RankPolicy::default();
+        let mut fast = JointVector::<6>::zeros();
+        let answer = solve_small_full_row_rank(&a, &e, &g, &policy, &mut fast);
+
+        let mut svd = ColumnSvd::<6>::default();
+        let mut work = a.clone();
+        svd.decompose(&mut work, &policy).unwrap();
+        let mut reference = JointVector::<6>::zeros();
+        svd.solve(&work, &e, VelocityInverse::Truncated, &mut reference).unwrap();
+        let component = svd.row_space_component_norm(&g);
+        let singular = a.clone().svd(false, false).singular_values;
+        let (sigma_max, sigma_min) = (singular.max(), singular.min());
+        let well_conditioned = sigma_min * SMALL_PATH_CONDITION_BOUND > 1.01 * sigma_max;
+        match answer {
+            Some(fast_component) => {
+                prop_assert!(sigma_min * SMALL_PATH_CONDITION_BOUND >= 0.99 * sigma_max);
+                let tolerance = 1e-11 * (e.norm() / sigma_min + 1.0);
+                prop_assert!((fast - reference).norm() <= tolerance, "{fast} vs {reference}");
+                prop_assert!((fast_component - component).abs() <= 1e-11 * (g.norm() + 1.0));
+            }
+            None => prop_assert!(!well_conditioned, "σ = {sigma_min} .. {sigma_max}: no answer"),
+        }
+        if rows == 2 && dependence > 0.0 && dependence < 1e-3 / 2.0 {
+            prop_assert!(answer.is_none());
+        }
+    }
+}
