@@ -323,7 +323,8 @@ pub struct TasksSpec {
     pub damping: f64,
     /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's gain, the classical task's included (the servo façade's
     /// [`AdaptiveGain`]); absent: the constant gains above. A gain that is lower at the goal than far from it
-    /// (`at_zero < at_infinity`, a negative `slope_at_zero`) averages pixel noise over a longer time near the goal.
+    /// (`at_zero < at_infinity`, a negative `slope_at_zero`) averages pixel noise over a longer time near the goal
+    /// ([D21](crate::theory#d21)).
     #[serde(default)]
     pub adaptive_gain: Option<AdaptiveGainSpec>,
 }

@@ -293,7 +293,7 @@ pub struct SimulationParameters {
     pub convergence_error: f64,
     /// How long (s, ≥ 0; default 0: the first period below) the task errors must stay below `convergence_error` for
     /// the run to count as converged: with pixel noise the errors first cross the threshold while the camera still
-    /// moves, and "settled" means staying below.
+    /// moves, and "settled" means staying below ([D21](crate::theory#d21)).
     pub convergence_hold_s: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
