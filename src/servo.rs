@@ -258,6 +258,18 @@ impl AdaptiveGain {
     pub fn max_gain(&self) -> f64 {
         (self.a + self.c).max(self.c)
     }
+
+    /// Sets the gain of the evaluated task `value` (named `name` in errors) to `λ(‖e‖∞)` of its current error.
+    ///
+    /// # Errors
+    /// [`TaskError`] for a gain outside [`crate::bounds::GAIN_PER_S`] (only when `λ(0)` or `λ(∞)` is).
+    pub fn apply<const N: usize>(
+        &self,
+        name: &str,
+        value: &mut TaskValue<N>,
+    ) -> Result<(), TaskError> {
+        value.set_gain(name, self.value(value.error().amax()))
+    }
 }
 
 /// The desired image of the target.
@@ -775,8 +787,7 @@ impl<const N: usize> VisualServo<N> {
             task.evaluate(&context, value)?;
             task_errors[i] = value.error().norm();
             if let Some(adaptive) = &self.adaptive {
-                let gain = adaptive.value(value.error().amax());
-                value.set_gain(Task::<N, VisualContext<'_, N>>::name(task), gain)?;
+                adaptive.apply(Task::<N, VisualContext<'_, N>>::name(task), value)?;
             }
             task_gains[i] = value.gain();
         }

@@ -1283,8 +1283,7 @@ pub fn simulate_with<const N: usize>(
         }
         if let Some(adaptive) = &drive.adaptive_gain {
             for (task, value) in tasks.iter().zip(values.iter_mut()) {
-                let gain = adaptive.value(value.error().amax());
-                value.set_gain(Task::<N, VisualContext<'_, N>>::name(task), gain)?;
+                adaptive.apply(Task::<N, VisualContext<'_, N>>::name(task), value)?;
             }
         }
         let step =
