@@ -1270,8 +1270,9 @@ impl<const N: usize> StackController<N> {
             let (Some(task), Some(svd)) = (tasks.get(index), self.svds.get_mut(index)) else {
                 continue;
             };
-            let mut direction = JointVector::zeros(); // J_i⁺ e_i
-                                                      // A one- or two-row task of full, well-conditioned rank in closed form; otherwise the SVD.
+            // J_i⁺ e_i and ‖J_i⁺J_i ∇h‖: for a one- or two-row task of full, well-conditioned rank in closed form,
+            // otherwise by the SVD.
+            let mut direction = JointVector::zeros();
             let c2_prime = match solve_small_full_row_rank(
                 task.jacobian(),
                 task.error(),
