@@ -3,7 +3,10 @@
 //! does not converge says why. Outcomes over draws, not numbers copied from a run.
 
 use servostack::scenario::{RunKind, Scenario};
-use servostack::study::{standard_families, Family, Perturbation, Study, StudyError};
+use servostack::study::{
+    standard_families, Family, Perturbation, Study, StudyError, POSE_TOLERANCE_DEG,
+    POSE_TOLERANCE_M,
+};
 use std::path::Path;
 
 fn scenario(name: &str) -> Scenario {
@@ -192,16 +195,19 @@ fn on_the_seven_joint_chain_swaps_do_not_cycle() {
 }
 
 /// The noise family of the study on `paper_afma6_pixel_noise.toml`: ±2 px of pixel noise and a 5 % intrinsics error
-/// (the example's `--noise 2 --calib 0.05`). With the scenario's filter, side ratios, gain lower at the goal and
-/// convergence held for 5 s, the full method settles in every mild draw, within 5 mm / 0.5° of the goal pose.
+/// (the example's `--noise 2 --calib 0.05`). With the scenario's filter, side ratios, gain of 0.03 s⁻¹ at the goal and
+/// convergence held for 45 s, the full method settles in every mild draw, within 5 mm / 0.5° of the goal pose, and
+/// all but at most one of twelve draws end within the 2 mm / 0.2° aimed at. With the earlier gain of 0.1 s⁻¹ held 5 s
+/// about 70 % of the draws did, and eleven of twelve would be a 9 % chance.
 #[test]
-fn under_pixel_noise_the_full_method_settles_near_the_goal_pose() {
+fn under_pixel_noise_the_full_method_settles_within_two_millimetres() {
     let mut scenario = scenario("paper_afma6_pixel_noise");
     scenario.measurement.pixel_noise_uniform_px = 2.0;
     scenario.measurement.intrinsics_error_fraction = 0.05;
-    let study = Study::new(&scenario, families(&["mild"]), 4, 21)
+    let study = Study::new(&scenario, families(&["mild"]), 12, 21)
         .unwrap()
         .with_methods(&[RunKind::StackController]);
+    let mut within_aim = 0;
     for draw in &study.run::<6>().unwrap().families[0].draws {
         let full = &draw.methods[0];
         assert!(full.converged(), "draw {}: {full:?}", draw.draw);
@@ -210,5 +216,11 @@ fn under_pixel_noise_the_full_method_settles_near_the_goal_pose() {
             "draw {}: {full:?}",
             draw.draw
         );
+        if full.camera_translation_error <= POSE_TOLERANCE_M
+            && full.camera_rotation_error_deg <= POSE_TOLERANCE_DEG
+        {
+            within_aim += 1;
+        }
     }
+    assert!(within_aim >= 11, "{within_aim} of 12 within 2 mm / 0.2°");
 }
