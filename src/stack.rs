@@ -14,9 +14,12 @@
 //! free by the whole stack, where avoidance acts ([`crate::law`], [\[M18\]](crate::theory#m18)). Because `range(J̃_i⁺) ⊂ range(P^A_{i−1})`,
 //! a lower level never changes `J_k q̇` for a higher level `k` (up to the rank truncation).
 //!
-//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]), or, for a first level of
-//! at least `N` rows certified to have full column rank and to be well conditioned, by the normal equations
-//! ([`crate::linalg::solve_full_column_rank`], [D15](crate::theory#d15)); the velocity term may use
+//! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]), or without it on one of
+//! two certified paths ([D15](crate::theory#d15)): a first level of at least `N` rows certified to have full column
+//! rank and to be well conditioned, by the normal equations ([`crate::linalg::solve_full_column_rank`]); a level of
+//! one or two rows certified to have full row rank and to be well conditioned, in closed form from the `1 × 1` or
+//! `2 × 2` matrix `J̃_i J̃_iᵀ` ([`crate::linalg::solve_small_stack_level`]). Both answer only when the SVD's rank decision
+//! is certain, and then agree with it to rounding. The velocity term may use
 //! damped least squares, the projector update is always the truncated, exact `J̃⁺J̃` ([D2](crate::theory#d2)). The projector is
 //! re-symmetrised after each update ([theory §2.1.3](crate::theory#s2-1-3)). The rank threshold of level `i` is relative to the task's own scale
 //! `‖J_i‖_F`, not to `σ_max(J̃_i)`: a level whose `J̃_i` is tiny compared with `J_i` conflicts with the higher levels
@@ -41,8 +44,8 @@
 //! ```
 
 use crate::linalg::{
-    mul_rows_to, solve_full_column_rank, ColumnSvd, LinalgError, RankPolicy, VelocityInverse,
-    FAST_PATH_CONDITION_BOUND,
+    mul_rows_to, solve_full_column_rank, solve_small_stack_level, ColumnSvd, LinalgError,
+    RankPolicy, VelocityInverse, FAST_PATH_CONDITION_BOUND,
 };
 use crate::math::{JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
@@ -144,11 +147,13 @@ pub struct LevelDiagnostics {
     /// The numerical rank of the limited Jacobian `J̃_i = J_i P^A_{i−1}`.
     pub rank: usize,
     /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0); for a [`Self::certified`]
-    /// level, the certificate's lower bound on it, `1/‖L⁻¹‖_F` less rounding, within a factor `√N` of the exact value
-    /// ([D15](crate::theory#d15)).
+    /// level of full column rank, the certificate's lower bound on it, `1/‖L⁻¹‖_F` less rounding, within a factor `√N`
+    /// of the exact value; for a certified level of one or two rows, the value from the closed-form eigenvalue of
+    /// `J̃_i J̃_iᵀ` ([D15](crate::theory#d15)).
     pub smallest_kept_singular_value: Option<f64>,
-    /// `true` when the level was certified to have full column rank `N` and solved by the normal equations without
-    /// an SVD ([`crate::linalg::solve_full_column_rank`], [D15](crate::theory#d15)); `false` for the SVD.
+    /// `true` when the level was solved without an SVD on a certified path ([D15](crate::theory#d15)): full column
+    /// rank `N` by the normal equations ([`crate::linalg::solve_full_column_rank`]), or one or two rows of full row
+    /// rank in closed form ([`crate::linalg::solve_small_stack_level`]); `false` for the SVD.
     pub certified: bool,
     /// `true` when `rank J̃_i = m_i`: every velocity the task asks for is realisable without disturbing the higher
     /// levels ([theory §2.1.5](crate::theory#s2-1-5)). A task with more rows than free joints is never fully achievable.
@@ -295,17 +300,25 @@ pub fn solve_stack<'w, const N: usize>(
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
         let scale = task.jacobian().norm();
-        // A level that sees every joint direction free (P^A_{i−1} = I) and has at least N rows may be certified to have
-        // full column rank N, well conditioned (D15): then J̃_i⁺ r is the least-squares solution, solved without the SVD.
-        let eligible =
-            free == N && rows >= N && parameters.velocity_inverse == VelocityInverse::Truncated;
-        let certified = (eligible && *try_certified)
-            .then(|| solve_full_column_rank(&w, &r, &parameters.rank_policy, scale, step))
-            .flatten();
+        // Two certified paths without the SVD (D15), each answering only when it can confirm what the SVD would decide:
+        // a level that sees every joint direction free (P^A_{i−1} = I) with at least N rows, of full column rank N
+        // (J̃_i⁺ r is then the least-squares solution); a level of one or two rows of full row rank (J̃_i⁺ = J̃_iᵀ G⁻¹ and
+        // its row-space projector in closed form). Otherwise, and for damped least squares, the SVD.
+        let truncated = parameters.velocity_inverse == VelocityInverse::Truncated;
+        let eligible = free == N && rows >= N && truncated;
+        let policy = &parameters.rank_policy;
+        let certified = if eligible && *try_certified {
+            solve_full_column_rank(&w, &r, policy, scale, step).map(|bound| (N, bound))
+        } else if rows <= 2 && truncated {
+            solve_small_stack_level(&w, &r, policy, scale, step, &mut solution.projector)
+                .map(|sigma_min| (rows, sigma_min))
+        } else {
+            None
+        };
         let (rank, smallest_kept_singular_value) = match certified {
-            Some(lower_bound) => (N, Some(lower_bound)),
+            Some((rank, sigma_min)) => (rank, Some(sigma_min)),
             None => {
-                svd.decompose_warm(&mut w, &parameters.rank_policy, scale)
+                svd.decompose_warm(&mut w, policy, scale)
                     .map_err(|source| StackError::Linalg { level, source })?;
                 svd.solve(&w, &r, parameters.velocity_inverse, step)
                     .map_err(|source| StackError::Linalg { level, source })?;
@@ -320,12 +333,12 @@ pub fn solve_stack<'w, const N: usize>(
         };
         solution.velocity += &*step;
         // rank P^A_i = rank P^A_{i−1} − rank J̃_i: once the stack has used every joint direction, P^A_i = 0 exactly
-        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term). A certified
-        // level always gets there.
+        // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term). A level of
+        // full column rank always gets there; a small certified level has already updated the projector.
         free = free.saturating_sub(rank);
         if free == 0 {
             solution.projector.fill(0.0);
-        } else {
+        } else if certified.is_none() {
             svd.subtract_row_space_projector(&mut solution.projector);
         }
         solution.levels.push(LevelDiagnostics {

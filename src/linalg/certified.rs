@@ -185,9 +185,125 @@ fn cholesky_inverse<const N: usize>(g: &[[f64; N]; N]) -> Option<[[f64; N]; N]> 
     Some(inverse)
 }
 
-/// The largest condition number `σ_max/σ_min` for which [`solve_small_full_row_rank`] answers: the Gram matrix then
-/// has `κ(G) ≤ 10⁴`, and its closed-form inverse agrees with the SVD's pseudo-inverse within `10⁻¹¹` relative.
+/// The largest condition number `σ_max/σ_min` for which [`solve_small_full_row_rank`] and
+/// [`solve_small_stack_level`] answer: the Gram matrix then has `κ(G) ≤ 10⁴`, and its closed-form inverse agrees with
+/// the SVD's pseudo-inverse within `10⁻¹¹` relative.
 pub const SMALL_PATH_CONDITION_BOUND: f64 = 1e2;
+
+/// The rows of a `1 × N` or `2 × N` matrix `A` certified to have full row rank, well conditioned, with its Gram matrix
+/// `G = A Aᵀ = [p b; b c]` (for one row, `G = p`, with `b = 0`, `c = 1`):
+///
+/// ```text
+/// λ± = (p + c)/2 ± √(((p − c)/2)² + b²)        the eigenvalues of G, the squared singular values of A
+/// ```
+///
+/// Certified when `σ_min = √λ₋` is finite, `σ_max/σ_min ≤ SMALL_PATH_CONDITION_BOUND`, and
+/// `σ_min > 2 · policy.threshold(max(σ_max, reference_scale))`: the SVD's rank decision (the threshold it takes, with
+/// a factor 2 of margin), so every singular value is kept and `A⁺ = Aᵀ G⁻¹`.
+struct SmallFullRowRank<const N: usize> {
+    rows: [JointVector<N>; 2],
+    count: usize,
+    /// `G = [p b; b c]`.
+    p: f64,
+    b: f64,
+    c: f64,
+    /// `det G = λ₊ λ₋` (for one row, `p²`: unused).
+    det: f64,
+    sigma_min: f64,
+}
+
+impl<const N: usize> SmallFullRowRank<N> {
+    fn certify<R, S>(
+        a: &Matrix<f64, R, Const<N>, S>,
+        policy: &RankPolicy,
+        reference_scale: f64,
+    ) -> Option<Self>
+    where
+        R: Dim,
+        S: RawStorage<f64, R, Const<N>>,
+    {
+        let row = |i: usize| JointVector::<N>::from_fn(|k, _| a[(i, k)]);
+        let (rows, p, b, c, largest, smallest) = match a.nrows() {
+            1 => {
+                let r0 = row(0);
+                let p = r0.norm_squared();
+                ([r0, JointVector::zeros()], p, 0.0, 1.0, p, p)
+            }
+            2 => {
+                let (r0, r1) = (row(0), row(1));
+                let (p, b, c) = (r0.norm_squared(), r0.dot(&r1), r1.norm_squared());
+                // √(x² + b²) without `hypot`: a square that overflows makes λ₋ = −∞ or NaN, which the certificate
+                // refuses (the SVD then answers).
+                let half_gap = (0.25 * (p - c) * (p - c) + b * b).sqrt();
+                let mean = 0.5 * (p + c);
+                ([r0, r1], p, b, c, mean + half_gap, mean - half_gap)
+            }
+            _ => return None,
+        };
+        let (sigma_min, sigma_max) = (smallest.max(0.0).sqrt(), largest.sqrt());
+        let certified = smallest > 0.0
+            && sigma_min.is_finite()
+            && sigma_min * SMALL_PATH_CONDITION_BOUND >= sigma_max
+            && sigma_min > 2.0 * policy.threshold(sigma_max.max(reference_scale));
+        certified.then_some(Self {
+            rows,
+            count: a.nrows(),
+            p,
+            b,
+            c,
+            // det G = λ₊ λ₋: accurate where p c − b² may cancel.
+            det: largest * smallest,
+            sigma_min,
+        })
+    }
+
+    /// `G⁻¹ (u, v)` (`v` ignored for one row).
+    fn inverse_gram(&self, u: f64, v: f64) -> (f64, f64) {
+        match self.count {
+            1 => (u / self.p, 0.0),
+            _ => (
+                (self.c * u - self.b * v) / self.det,
+                (self.p * v - self.b * u) / self.det,
+            ),
+        }
+    }
+
+    /// `A⁺ e = Aᵀ G⁻¹ e`, `None` when not finite.
+    fn pseudo_inverse_times<R, SE>(&self, e: &Vector<f64, R, SE>) -> Option<JointVector<N>>
+    where
+        R: Dim,
+        SE: RawStorage<f64, R>,
+    {
+        let (y0, y1) = self.inverse_gram(e[0], if self.count == 2 { e[1] } else { 0.0 });
+        (y0.is_finite() && y1.is_finite()).then(|| self.rows[0] * y0 + self.rows[1] * y1)
+    }
+
+    /// `‖A⁺A g‖ = √((A g)ᵀ G⁻¹ (A g))`, the norm of the component of `g` in the row space of `A`.
+    fn row_space_component_norm(&self, g: &JointVector<N>) -> f64 {
+        let (w0, w1) = (self.rows[0].dot(g), self.rows[1].dot(g));
+        let (z0, z1) = self.inverse_gram(w0, w1);
+        (w0 * z0 + w1 * z1).max(0.0).sqrt()
+    }
+
+    /// `P ← P − A⁺A = P − Aᵀ G⁻¹ A` on the upper triangle, mirrored to the lower one: symmetric by construction, as
+    /// the SVD path's re-symmetrised update.
+    fn subtract_row_space_projector(&self, projector: &mut JointMatrix<N>) {
+        let [r0, r1] = &self.rows;
+        // Aᵀ G⁻¹ A = α r0 r0ᵀ + β (r0 r1ᵀ + r1 r0ᵀ) + γ r1 r1ᵀ.
+        let (alpha, beta, gamma) = match self.count {
+            1 => (1.0 / self.p, 0.0, 0.0),
+            _ => (self.c / self.det, -self.b / self.det, self.p / self.det),
+        };
+        for j in 0..N {
+            let (a0, a1) = (alpha * r0[j] + beta * r1[j], beta * r0[j] + gamma * r1[j]);
+            for i in 0..=j {
+                let entry = projector[(i, j)] - (r0[i] * a0 + r1[i] * a1);
+                projector[(i, j)] = entry;
+                projector[(j, i)] = entry;
+            }
+        }
+    }
+}
 
 /// For a matrix `A` of **one or two rows** (`1 × N` or `2 × N`) certified to have full row rank under `policy`, well
 /// conditioned: `x = A⁺ e` into `out`, and `‖A⁺A g‖`, the norm of the component of `g` in the row space of `A`; `None`
@@ -198,11 +314,10 @@ pub const SMALL_PATH_CONDITION_BOUND: f64 = 1e2;
 /// G = A Aᵀ (1 × 1 or 2 × 2),   x = Aᵀ G⁻¹ e,   ‖A⁺A g‖² = (A g)ᵀ G⁻¹ (A g)
 /// ```
 ///
-/// The eigenvalues of the symmetric `G` are the squared singular values of `A`, in closed form
-/// (`λ± = (a + c)/2 ± √(((a − c)/2)² + b²)`); the rank decision is the SVD's (`σ > policy.threshold(σ_max)`) with a
-/// factor 2 of margin, so the truncated pseudo-inverse is the plain `Aᵀ G⁻¹`. Used for the removal criteria of the
-/// one- and two-row visual tasks, where it replaces one SVD per task and period. Allocates nothing; `out` is written
-/// only on success.
+/// The eigenvalues of the symmetric `G` are the squared singular values of `A`, in closed form; the rank decision is
+/// the SVD's (`σ > policy.threshold(σ_max)`) with a factor 2 of margin, so the truncated pseudo-inverse is the plain
+/// `Aᵀ G⁻¹`. Used for the removal criteria of the one- and two-row visual tasks, where it replaces one SVD per task
+/// and period. Allocates nothing; `out` is written only on success.
 pub fn solve_small_full_row_rank<const N: usize, R, S, SE>(
     a: &Matrix<f64, R, Const<N>, S>,
     e: &Vector<f64, R, SE>,
@@ -218,44 +333,40 @@ where
     if e.nrows() != a.nrows() {
         return None;
     }
-    let row = |i: usize| JointVector::<N>::from_fn(|k, _| a[(i, k)]);
-    let certified = |sigma_min: f64, sigma_max: f64| {
-        sigma_min.is_finite()
-            && sigma_min * SMALL_PATH_CONDITION_BOUND >= sigma_max
-            && sigma_min > 2.0 * policy.threshold(sigma_max)
-    };
-    match a.nrows() {
-        1 => {
-            let r0 = row(0);
-            let squared = r0.norm_squared();
-            let sigma = squared.sqrt();
-            if !(certified(sigma, sigma) && e[0].is_finite()) {
-                return None;
-            }
-            *out = r0 * (e[0] / squared);
-            Some(r0.dot(g).abs() / sigma)
-        }
-        2 => {
-            let (r0, r1) = (row(0), row(1));
-            let (p, b, c) = (r0.norm_squared(), r0.dot(&r1), r1.norm_squared());
-            let half_gap = (0.5 * (p - c)).hypot(b);
-            let mean = 0.5 * (p + c);
-            let (largest, smallest) = (mean + half_gap, mean - half_gap);
-            if !(smallest > 0.0 && certified(smallest.sqrt(), largest.sqrt())) {
-                return None;
-            }
-            // G⁻¹ = [c −b; −b p] / det, det = λ₊ λ₋ (both eigenvalues well away from 0 here).
-            let det = largest * smallest;
-            let solve = |u: f64, v: f64| ((c * u - b * v) / det, (p * v - b * u) / det);
-            let (y0, y1) = solve(e[0], e[1]);
-            if !(y0.is_finite() && y1.is_finite()) {
-                return None;
-            }
-            *out = r0 * y0 + r1 * y1;
-            let (w0, w1) = (r0.dot(g), r1.dot(g));
-            let (z0, z1) = solve(w0, w1);
-            Some((w0 * z0 + w1 * z1).max(0.0).sqrt())
-        }
-        _ => None,
+    let certified = SmallFullRowRank::certify(a, policy, 0.0)?;
+    *out = certified.pseudo_inverse_times(e)?;
+    Some(certified.row_space_component_norm(g))
+}
+
+/// One level of the stack ([\[M8\]](crate::theory#m8)) of **one or two rows** in closed form, when the limited
+/// Jacobian `J̃ = A` is certified to have full row rank, well conditioned (as [`solve_small_full_row_rank`], with the
+/// stack's rank threshold taken against `max(σ_max, reference_scale)`, `reference_scale = ‖J_i‖_F`):
+///
+/// ```text
+/// step = J̃ᵀ G⁻¹ r,    P ← P − J̃ᵀ G⁻¹ J̃    (G = J̃ J̃ᵀ)
+/// ```
+///
+/// the SVD's truncated pseudo-inverse and row-space projector, since every singular value is kept. Returns `σ_min(J̃)`
+/// (from the closed-form eigenvalue of `G`); `None`, with `step` and `projector` untouched, when the certificate fails
+/// or `r` is not finite: the caller then takes the SVD. Allocates nothing.
+pub fn solve_small_stack_level<const N: usize, R, S, SR>(
+    a: &Matrix<f64, R, Const<N>, S>,
+    r: &Vector<f64, R, SR>,
+    policy: &RankPolicy,
+    reference_scale: f64,
+    step: &mut JointVector<N>,
+    projector: &mut JointMatrix<N>,
+) -> Option<f64>
+where
+    R: Dim,
+    S: RawStorage<f64, R, Const<N>>,
+    SR: RawStorage<f64, R>,
+{
+    if r.nrows() != a.nrows() {
+        return None;
     }
+    let certified = SmallFullRowRank::certify(a, policy, reference_scale)?;
+    *step = certified.pseudo_inverse_times(r)?;
+    certified.subtract_row_space_projector(projector);
+    Some(certified.sigma_min)
 }

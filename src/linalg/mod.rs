@@ -43,8 +43,8 @@ mod svd;
 mod tests;
 
 pub use certified::{
-    solve_full_column_rank, solve_small_full_row_rank, FAST_PATH_CONDITION_BOUND,
-    SMALL_PATH_CONDITION_BOUND,
+    solve_full_column_rank, solve_small_full_row_rank, solve_small_stack_level,
+    FAST_PATH_CONDITION_BOUND, SMALL_PATH_CONDITION_BOUND,
 };
 pub use projector::{null_space_projector, symmetrize};
 pub use pseudo_inverse::pseudo_inverse;

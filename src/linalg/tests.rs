@@ -422,3 +422,70 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// A stack level of one or two rows in closed form against the SVD, on `J̃ = J P` with `P` the kernel projector of
+    /// up to three random higher rows: where it answers, the step `J̃⁺r` and the updated projector `P − J̃⁺J̃` agree with
+    /// the SVD's within `1e−12` (relative to `‖r‖/σ_min` and to 1); it answers for every `J̃` well conditioned and
+    /// clear of the stack's rank threshold (taken against `‖J‖_F`), and for none that nearly repeats a higher row.
+    #[test]
+    fn small_stack_level_matches_the_svd(
+        rows in 1usize..3,
+        higher in 0usize..4,
+        data in matrix_strategy::<6>(5),
+        r in proptest::collection::vec(-1.0..1.0f64, 2),
+        scale_exponent in -3.0..3.0f64,
+        repeat in prop_oneof![Just(0.0), 1e-9..1e-2f64],
+    ) {
+        let upper = data.rows(0, higher).into_owned();
+        let mut work = upper.clone();
+        let policy = RankPolicy::default();
+        let projector = null_space_projector(&upper, &mut work, &policy).unwrap();
+        let mut jacobian = data.rows(3, rows).into_owned() * 10f64.powf(scale_exponent);
+        if higher > 0 && repeat > 0.0 {
+            // The first row nearly repeats a higher one: J̃'s first row is then of size `repeat`.
+            let nearly = upper.row(0) * 10f64.powf(scale_exponent) + jacobian.row(0) * repeat;
+            jacobian.set_row(0, &nearly);
+        }
+        let limited = &jacobian * projector;
+        let reference_scale = jacobian.norm();
+        let r = DVector::from_column_slice(&r[..rows]);
+
+        let mut step = JointVector::<6>::zeros();
+        let mut updated = projector;
+        let answer = solve_small_stack_level(&limited, &r, &policy, reference_scale, &mut step, &mut updated);
+
+        let mut svd = ColumnSvd::<6>::default();
+        let mut w = limited.clone();
+        svd.decompose_with_scale(&mut w, &policy, reference_scale).unwrap();
+        let mut reference_step = JointVector::<6>::zeros();
+        svd.solve(&w, &r, VelocityInverse::Truncated, &mut reference_step).unwrap();
+        let mut reference_projector = projector;
+        svd.subtract_row_space_projector(&mut reference_projector);
+        let singular = limited.clone().transpose().svd(false, false).singular_values;
+        let (sigma_max, sigma_min) = (singular.max(), singular.min());
+        let clear = sigma_min * SMALL_PATH_CONDITION_BOUND > 1.01 * sigma_max
+            && sigma_min > 2.01 * policy.threshold(sigma_max.max(reference_scale));
+        match answer {
+            Some(answered_sigma_min) => {
+                prop_assert_eq!(svd.rank(), rows);
+                prop_assert!((answered_sigma_min - sigma_min).abs() <= 1e-9 * sigma_min);
+                let tolerance = 1e-12 * (r.norm() / sigma_min + 1.0);
+                prop_assert!((step - reference_step).norm() <= tolerance, "{step} vs {reference_step}");
+                let difference = (updated - reference_projector).amax();
+                prop_assert!(difference <= 1e-12, "|P − P_svd| = {difference:e}");
+                prop_assert_eq!(updated, updated.transpose());
+            }
+            None => {
+                prop_assert!(!clear, "σ = {sigma_min} .. {sigma_max}: no answer");
+                prop_assert_eq!(step, JointVector::<6>::zeros());
+                prop_assert_eq!(updated, projector);
+            }
+        }
+        if higher > 0 && repeat > 0.0 && repeat < 1e-7 {
+            prop_assert!(answer.is_none());
+        }
+    }
+}
