@@ -36,6 +36,7 @@ fn steps(c: &mut Criterion) {
     let mut group = c.benchmark_group("step");
     let loops = [
         ("paper_four_tasks_controller", ServoLoop::paper()),
+        ("paper_full_method", ServoLoop::paper_full_method()),
         ("classical_controller", ServoLoop::classical()),
         ("peer_A", ServoLoop::peer(Variant::A)),
         ("peer_B", ServoLoop::peer(Variant::B)),

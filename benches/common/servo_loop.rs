@@ -11,7 +11,7 @@
 #![allow(dead_code)] // each including crate uses part of it
 
 use nalgebra::Isometry3;
-use servostack::avoidance::Cost;
+use servostack::avoidance::{CompositeCost, Cost, VisibilityCost};
 use servostack::camera::CameraIntrinsics;
 use servostack::controller::{ControllerParameters, StackController};
 use servostack::feature::{AllPoints, AreaNormalization, FeatureSet, InteractionSource};
@@ -95,6 +95,12 @@ enum Drive {
 }
 
 /// A servo loop on the peer scene: model (scene, tasks, law) and workspaces, allocated once.
+/// The avoidance cost and the removal guard of the simulation's full method (`sim::simulate_with`).
+struct FullMethodCosts {
+    cost: CompositeCost<'static, 6>,
+    guard: VisibilityCost<6>,
+}
+
 pub struct ServoLoop {
     scene: Scene<6>,
     tasks: Vec<VisualTask>,
@@ -102,6 +108,9 @@ pub struct ServoLoop {
     law: ControlLaw,
     drive: Drive,
     kinematics: KinematicsWorkspace<6>,
+    /// The full method's costs in the simulation (joint limits and visibility, the visibility guarding removals), in
+    /// place of the joint limits alone.
+    full_method: Option<FullMethodCosts>,
     start: JointVector<6>,
     q: JointVector<6>,
     iteration: usize,
@@ -149,6 +158,7 @@ impl ServoLoop {
             law,
             drive,
             kinematics: KinematicsWorkspace::new(),
+            full_method: None,
             start: start(),
             q: start(),
             iteration: 0,
@@ -237,6 +247,25 @@ impl ServoLoop {
         Self::controlled(tasks)
     }
 
+    /// [`Self::paper`] as the simulation runs the full method: the visibility of the target (the simulation's default
+    /// 20 px margin) joins the avoidance cost and guards removals, evaluated at `q` and at the predicted `q̂`.
+    pub fn paper_full_method() -> Self {
+        let mut servo = Self::paper();
+        let guard = servo
+            .scene
+            .clone()
+            .with_visibility_margin(20.0)
+            .expect("visibility")
+            .visibility()
+            .expect("visibility cost")
+            .clone();
+        let cost = CompositeCost::new()
+            .with(servo.scene.limits().clone())
+            .with(guard.clone());
+        servo.full_method = Some(FullMethodCosts { cost, guard });
+        servo
+    }
+
     /// The classical six-row task (§7.7) in one level, under the controller with joint-limit avoidance.
     pub fn classical() -> Self {
         let scene = scene(0.3);
@@ -293,7 +322,10 @@ impl ServoLoop {
         for (task, value) in self.tasks.iter().zip(self.values.iter_mut()) {
             task.evaluate(&context, value).expect("task");
         }
-        let cost: &dyn Cost<6> = self.scene.limits();
+        let (cost, guard): (&dyn Cost<6>, Option<&dyn Cost<6>>) = match &self.full_method {
+            Some(full) => (&full.cost, Some(&full.guard)),
+            None => (self.scene.limits(), None),
+        };
         let velocity = match &mut self.drive {
             Drive::Law {
                 workspace,
@@ -321,10 +353,11 @@ impl ServoLoop {
             }
             Drive::Controller { controller, .. } => {
                 controller
-                    .step(
+                    .step_guarded(
                         &self.law,
                         &self.values,
                         Some(cost),
+                        guard,
                         &self.q,
                         self.iteration,
                         time,
