@@ -164,6 +164,18 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if options.noise_px.is_some() || options.calib.is_some() {
         scenario.simulation.convergence_error = scenario.simulation.convergence_error.max(1e-3);
+        if options.noise_px.is_some_and(|noise| noise > 0.0)
+            && (scenario.measurement.filter_time_constant_s == 0.0
+                || scenario.tasks.adaptive_gain.is_none())
+        {
+            // The study runs the scenario as written; say what the noise-ready settings are.
+            eprintln!(
+                "note: {} has no filter of the measured points or no gain lower at the goal; under pixel noise the \
+                 full method then chatters and ends far from the goal pose. \
+                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (README).",
+                options.scenario.display()
+            );
+        }
     }
     let mut families = standard_families();
     if !options.families.is_empty() {
