@@ -146,6 +146,7 @@ fn parts(c: &mut Criterion) {
     });
     let parameters = ControllerParameters {
         settle_velocity: 1e3,
+        settle_velocity_with_removal: 1e3,
         removal_threshold: Some(1e9),
         ..ControllerParameters::default()
     };

@@ -27,7 +27,9 @@
 //!    target, so that removing the centroid cannot let the target leave the image) is removed. When no candidate
 //!    qualifies, nothing is removed: the controller then behaves as the stack with projected gradient, which is
 //!    what "never worse than stack + gradient" needs.
-//! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`):
+//! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`; for a push with no
+//!    task out, when removals are allowed, `ε_add` is [`ControllerParameters::settle_velocity_with_removal`], 0.1 by
+//!    default against the paper's 0.01, so that the next task is pushed before the higher ones have quite converged):
 //!    * a removed task is **put back** (D7) at its original priority when it has stayed out for its dwell time
 //!      (`dwell · 2^{k−1}` after its `k`-th removal: each new removal doubles the wait) and the law with it back,
 //!      predicted over the task's own time constant `n_back/λ_i`, keeps `h(q̂) ≤ r_back · h_max` (**hysteresis**: a
@@ -146,8 +148,18 @@ pub enum DecisionRule {
 #[serde(deny_unknown_fields, default)]
 pub struct ControllerParameters {
     /// `ε_add`: the stack has settled when the Euclidean norm of the stack velocity `‖q̇_n‖` is below this (D5). Its unit
-    /// mixes the joints' units per second (m/s for prismatic, rad/s for revolute joints). Default 0.01.
+    /// mixes the joints' units per second (m/s for prismatic, rad/s for revolute joints). Default 0.01, the paper's
+    /// sequencing: each task converges before the next is pushed. Used by a controller that does not remove tasks
+    /// (the stack and stack-with-gradient laws) and by [`DecisionRule::Paper`].
     pub settle_velocity: f64,
+    /// `ε_add` of the pushes of a controller that removes tasks under [`DecisionRule::Robust`] (the full method; same
+    /// unit; default 0.1): with no task out, the next task is pushed while the stack still moves at up to this speed
+    /// (a removed task's re-insertion is still tested at [`Self::settle_velocity`]). A departure from the paper (D5):
+    /// waiting for the higher tasks to converge first lands the robot on configurations where the next task's
+    /// projected Jacobian is nearly singular (the goal-moved failures of the convergence-domain study); pushing
+    /// earlier, with the removals to keep the limits, avoids them. Measured window: 0.05 to 0.2 give the same study
+    /// within a few draws; 0.01 (the paper's) loses 10–16 % of the Afma6's goal-moved draws.
+    pub settle_velocity_with_removal: f64,
     /// `n_settle`: after a change, wait `t − τ ≥ n_settle / μ` before the next push or re-insertion (D5; default 5,
     /// when the transition term has decayed to `e^{−5} ≈ 0.7 %`).
     pub settle_transitions: f64,
@@ -192,6 +204,7 @@ impl Default for ControllerParameters {
     fn default() -> Self {
         Self {
             settle_velocity: 0.01,
+            settle_velocity_with_removal: 0.1,
             settle_transitions: 5.0,
             prediction_horizon: 0.05,
             look_ahead_transitions: 0.0,
@@ -230,13 +243,20 @@ impl ControllerParameters {
             }
         };
         let in_range = |v: f64, low: f64, high: f64| v.is_finite() && low <= v && v <= high;
-        let v = self.settle_velocity;
-        check(
-            "settle_velocity",
-            v,
-            v.is_finite() && v > 0.0 && v < 1e6,
-            "finite, > 0 and < 1e6",
-        )?;
+        for (name, v) in [
+            ("settle_velocity", self.settle_velocity),
+            (
+                "settle_velocity_with_removal",
+                self.settle_velocity_with_removal,
+            ),
+        ] {
+            check(
+                name,
+                v,
+                v.is_finite() && v > 0.0 && v < 1e6,
+                "finite, > 0 and < 1e6",
+            )?;
+        }
         let v = self.settle_transitions;
         check(
             "settle_transitions",
@@ -1024,9 +1044,15 @@ impl<const N: usize> StackController<N> {
         Ok(solution.velocity() + avoidance)
     }
 
-    /// D5: the stack velocity is small and the last transition has died out.
-    fn settled(&self, law: &ControlLaw, time: f64, stack_velocity_norm: f64) -> bool {
-        stack_velocity_norm < self.parameters.settle_velocity
+    /// D5: the stack velocity is below `epsilon_add` and the last transition has died out.
+    fn settled(
+        &self,
+        law: &ControlLaw,
+        time: f64,
+        stack_velocity_norm: f64,
+        epsilon_add: f64,
+    ) -> bool {
+        stack_velocity_norm < epsilon_add
             && time - self.last_change_time
                 >= self.parameters.settle_transitions / law.transition_gain()
     }
@@ -1044,7 +1070,19 @@ impl<const N: usize> StackController<N> {
         time: f64,
         result: &ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
-        if !self.settled(law, time, result.stack_velocity_norm) {
+        // With no task out, the next push waits for the full method's threshold when tasks may be removed (robust
+        // rule), the paper's otherwise; a removed task is tested for re-insertion at the paper's, once the stack has
+        // nearly stopped (D5).
+        let parameters = &self.parameters;
+        let epsilon_add = if self.removed.is_empty()
+            && parameters.allow_removal
+            && parameters.rule == DecisionRule::Robust
+        {
+            parameters.settle_velocity_with_removal
+        } else {
+            parameters.settle_velocity
+        };
+        if !self.settled(law, time, result.stack_velocity_norm, epsilon_add) {
             return Ok(None);
         }
         if self.removed.is_empty() {

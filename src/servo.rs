@@ -416,7 +416,7 @@ pub struct ServoOutput<const N: usize> {
     pub event: Option<EventKind>,
     /// `‖q̇_n‖`, the norm of the stack velocity without transition and avoidance (mixed rad/s and m/s): the controller
     /// pushes the next task, or tries to put a removed one back, once it is below
-    /// [`ControllerParameters::settle_velocity`] ([D5](crate::theory#d5)).
+    /// [`ControllerParameters::settle_velocity_with_removal`] ([D5](crate::theory#d5)).
     pub stack_velocity_norm: f64,
     /// Every task stacked and `‖e_i‖ < convergence_error` for each.
     pub converged: bool,

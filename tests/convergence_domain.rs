@@ -171,11 +171,14 @@ fn invalid_study_parameters_are_named() {
 
 /// D7 anti-cycling: on the 7-joint chain, where `a_n` and the third-order task block each other in turn, a swap is
 /// never undone by the next one, so tasks are not traded back and forth until their removal budgets run out: the
-/// median run removes at most two tasks, and every draw still converges.
+/// median run removes at most two tasks, no task is removed more than twice, and every draw still converges. With the
+/// paper's settling threshold for the pushes (the full method's earlier pushes avoid most of these conflicts, and the
+/// test would not see the rule at work): without the rule the median run removes five tasks.
 #[test]
 fn on_the_seven_joint_chain_swaps_do_not_cycle() {
-    let scenario = scenario("rail7_limits");
-    let study = Study::new(&scenario, families(&["mild", "view_10deg"]), 6, 3)
+    let mut scenario = scenario("rail7_limits");
+    scenario.controller.settle_velocity_with_removal = scenario.controller.settle_velocity;
+    let study = Study::new(&scenario, families(&["mild", "view_10deg"]), 20, 3)
         .unwrap()
         .with_methods(&[RunKind::StackController]);
     let result = study.run::<7>().unwrap();
@@ -187,7 +190,7 @@ fn on_the_seven_joint_chain_swaps_do_not_cycle() {
             family.family.name
         );
         assert!(
-            full.median_removals <= 2.0,
+            full.median_removals <= 2.0 && full.max_removals_of_a_task <= 2,
             "{}: {full:?}",
             family.family.name
         );

@@ -172,7 +172,10 @@ fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
             ),
             (
                 "eps_add",
-                Box::new(move |s: &mut Scenario| s.controller.settle_velocity *= factor),
+                Box::new(move |s: &mut Scenario| {
+                    s.controller.settle_velocity *= factor;
+                    s.controller.settle_velocity_with_removal *= factor;
+                }),
             ),
             (
                 "z_star",

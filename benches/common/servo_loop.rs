@@ -212,6 +212,7 @@ impl ServoLoop {
     fn steady_controller() -> ControllerParameters {
         ControllerParameters {
             settle_velocity: 1e3,
+            settle_velocity_with_removal: 1e3,
             removal_threshold: Some(1e9),
             ..ControllerParameters::default()
         }
