@@ -149,8 +149,9 @@ pub enum DecisionRule {
 pub struct ControllerParameters {
     /// `ε_add`: the stack has settled when the Euclidean norm of the stack velocity `‖q̇_n‖` is below this (D5). Its unit
     /// mixes the joints' units per second (m/s for prismatic, rad/s for revolute joints). Default 0.01, the paper's
-    /// sequencing: each task converges before the next is pushed. Used by a controller that does not remove tasks
-    /// (the stack and stack-with-gradient laws) and by [`DecisionRule::Paper`].
+    /// sequencing: each task converges before the next is pushed. Used for every push of a controller that does not
+    /// remove tasks (the stack and stack-with-gradient laws) or follows [`DecisionRule::Paper`], and, under the robust
+    /// rule, for the tests that put a removed task back.
     pub settle_velocity: f64,
     /// `ε_add` of the pushes of a controller that removes tasks under [`DecisionRule::Robust`] (the full method; same
     /// unit; default 0.1): with no task out, the next task is pushed while the stack still moves at up to this speed

@@ -310,7 +310,9 @@ pub fn solve_stack<'w, const N: usize>(
         let certified = if eligible && *try_certified {
             solve_full_column_rank(&w, &r, policy, scale, step).map(|bound| (N, bound))
         } else if rows <= 2 && truncated {
-            solve_small_stack_level(&w, &r, policy, scale, step, &mut solution.projector)
+            // A level that takes the last free directions leaves P^A_i = 0 (set below): no update to compute.
+            let projector = (free > rows).then_some(&mut solution.projector);
+            solve_small_stack_level(&w, &r, policy, scale, step, projector)
                 .map(|sigma_min| (rows, sigma_min))
         } else {
             None
@@ -334,7 +336,8 @@ pub fn solve_stack<'w, const N: usize>(
         solution.velocity += &*step;
         // rank P^A_i = rank P^A_{i−1} − rank J̃_i: once the stack has used every joint direction, P^A_i = 0 exactly
         // (no subtraction left to do, and no rounding noise for the levels below or the avoidance term). A level of
-        // full column rank always gets there; a small certified level has already updated the projector.
+        // full column rank always gets there; a small certified level has already updated the projector (or left it
+        // to be zeroed here).
         free = free.saturating_sub(rank);
         if free == 0 {
             solution.projector.fill(0.0);

@@ -94,13 +94,13 @@ enum Drive {
     },
 }
 
-/// A servo loop on the peer scene: model (scene, tasks, law) and workspaces, allocated once.
 /// The avoidance cost and the removal guard of the simulation's full method (`sim::simulate_with`).
 struct FullMethodCosts {
     cost: CompositeCost<'static, 6>,
     guard: VisibilityCost<6>,
 }
 
+/// A servo loop on the peer scene: model (scene, tasks, law) and workspaces, allocated once.
 pub struct ServoLoop {
     scene: Scene<6>,
     tasks: Vec<VisualTask>,

@@ -346,16 +346,18 @@ where
 /// step = J̃ᵀ G⁻¹ r,    P ← P − J̃ᵀ G⁻¹ J̃    (G = J̃ J̃ᵀ)
 /// ```
 ///
-/// the SVD's truncated pseudo-inverse and row-space projector, since every singular value is kept. Returns `σ_min(J̃)`
-/// (from the closed-form eigenvalue of `G`); `None`, with `step` and `projector` untouched, when the certificate fails
-/// or `r` is not finite: the caller then takes the SVD. Allocates nothing.
+/// the SVD's truncated pseudo-inverse and row-space projector, since every singular value is kept. `projector` is
+/// `None` when the caller has no use for the update (a level that uses up the last free directions, after which the
+/// projector is zero). Returns `σ_min(J̃)` (from the closed-form eigenvalue of `G`); `None`, with `step` and
+/// `projector` untouched, when the certificate fails or `r` is not finite: the caller then takes the SVD. Allocates
+/// nothing.
 pub fn solve_small_stack_level<const N: usize, R, S, SR>(
     a: &Matrix<f64, R, Const<N>, S>,
     r: &Vector<f64, R, SR>,
     policy: &RankPolicy,
     reference_scale: f64,
     step: &mut JointVector<N>,
-    projector: &mut JointMatrix<N>,
+    projector: Option<&mut JointMatrix<N>>,
 ) -> Option<f64>
 where
     R: Dim,
@@ -367,6 +369,8 @@ where
     }
     let certified = SmallFullRowRank::certify(a, policy, reference_scale)?;
     *step = certified.pseudo_inverse_times(r)?;
-    certified.subtract_row_space_projector(projector);
+    if let Some(projector) = projector {
+        certified.subtract_row_space_projector(projector);
+    }
     Some(certified.sigma_min)
 }

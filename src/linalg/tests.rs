@@ -455,7 +455,7 @@ proptest! {
 
         let mut step = JointVector::<6>::zeros();
         let mut updated = projector;
-        let answer = solve_small_stack_level(&limited, &r, &policy, reference_scale, &mut step, &mut updated);
+        let answer = solve_small_stack_level(&limited, &r, &policy, reference_scale, &mut step, Some(&mut updated));
 
         let mut svd = ColumnSvd::<6>::default();
         let mut w = limited.clone();
