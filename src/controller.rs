@@ -16,8 +16,15 @@
 //!    The `(q̇ − u)` term carries the motion that the transition of D1 will still make, so a removal is judged on
 //!    where the robot will really go, not on a law it has not reached yet. The horizon may be a number of transitions
 //!    (`n_look/μ`); by default it is `T_min` (see [`ControllerParameters::look_ahead_transitions`] for the measured
-//!    trade-off).
-//! 3. **Removal** (D6), when `h(q̂) > h_max`, `h(q̂) > h(q)` (the danger grows), the gradient `∇h(q)` — or `∇h(q̂)`
+//!    trade-off). A prediction that takes a target point behind the camera, or that the cost forbids
+//!    ([`Cost::forbids`]: a joint beyond its hard limit), counts as an infinite cost, whatever `h_max`.
+//! 3. **Relief** (D7). While the cost is predicted to rise (`h(q̂) > h(q)`), a removed task whose dwell is over comes
+//!    back at once — without waiting for the robot to settle — when the law with it back, predicted the same way,
+//!    gives a lower `h(q̂)` than the current stack and one under `r_back · h_max` (the motion a removal freed may itself
+//!    raise the cost: with `a_n` out, the camera may drift until the target grows out of the image). Not within
+//!    `n_change/μ` of the last change, never during the fallback.
+//!
+//!    **Removal** (D6), when `h(q̂) > h_max`, `h(q̂) > h(q)` (the danger grows), the gradient `∇h(q)` — or `∇h(q̂)`
 //!    when the robot is still outside every activation band — is non-zero, and the last change is at least
 //!    `n_change/μ` old (**one change per transition**: no cascade while the previous change is still being blended
 //!    in). The candidates are the stacked tasks ranked by the paper's criteria (C1', C2, C2', D4). The first candidate
@@ -863,8 +870,8 @@ impl<const N: usize> StackController<N> {
         self.events.push(event);
     }
 
-    /// Steps 2–4 of the module docs: a removal (D6), else a re-insertion (D7), a fallback (D13) or a push (D5),
-    /// applied to the stack and logged. `result` receives the predicted cost.
+    /// Steps 2–4 of the module docs: a relieving re-insertion (D7), else a removal (D6), else a settled re-insertion
+    /// (D7), a fallback (D13) or a push (D5), applied to the stack and logged. `result` receives the predicted cost.
     #[allow(clippy::too_many_arguments)]
     fn decide(
         &mut self,
@@ -894,6 +901,7 @@ impl<const N: usize> StackController<N> {
         let mut predicted_gradient = JointVector::zeros();
         result.predicted_cost = match cost.value_and_gradient(&predicted, &mut predicted_gradient) {
             Err(CostError::PointBehindCamera { .. }) => f64::INFINITY,
+            _ if cost.forbids(&predicted) => f64::INFINITY,
             other => other?,
         };
         // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
@@ -909,6 +917,20 @@ impl<const N: usize> StackController<N> {
         let threshold = self.removal_threshold(cost);
         let danger_predicted =
             result.predicted_cost > threshold && result.predicted_cost > result.cost;
+        if let Some((task, predicted_back)) =
+            self.choose_relieving_reinsertion(law, tasks, cost, &prediction, horizon, result, time)?
+        {
+            let threshold = self.parameters.reinsertion_ratio * threshold;
+            self.reinsert(
+                task,
+                EventKind::Reinsert,
+                iteration,
+                time,
+                predicted_back,
+                threshold,
+            );
+            return Ok(Some(EventKind::Reinsert));
+        }
         if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time) {
             let choice = self.choose_removal(
                 law,
@@ -1023,6 +1045,50 @@ impl<const N: usize> StackController<N> {
                 }
             }
             return Ok(Some((task, predicted_without)));
+        }
+        Ok(None)
+    }
+
+    /// D7 relief: while the cost is predicted to rise (`h(q̂) > h(q)` over the removal horizon `T`), a removed task whose
+    /// dwell is over comes back, without waiting for the stack to settle, when the law with it back predicts a lower
+    /// cost than the current stack's and one under the re-insertion threshold `r_back · h_max`: the first such task by
+    /// priority, with its predicted cost. Robust rule only, never during the fallback, not within `n_change/μ` of the
+    /// last change.
+    #[allow(clippy::too_many_arguments)]
+    fn choose_relieving_reinsertion(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: &dyn Cost<N>,
+        prediction: &Prediction<'_, N>,
+        horizon: f64,
+        now: &ControllerStep<N>,
+        time: f64,
+    ) -> Result<Option<(usize, f64)>, ControllerError> {
+        if self.removed.is_empty()
+            || self.parameters.rule != DecisionRule::Robust
+            || self.fallback
+            || now.predicted_cost <= now.cost
+            || time - self.last_change_time
+                < self.parameters.change_transitions / law.transition_gain()
+        {
+            return Ok(None);
+        }
+        let threshold = self.parameters.reinsertion_ratio * self.removal_threshold(cost);
+        for rank in 0..self.removed.len() {
+            let task = self.removed[rank];
+            if time - self.removed_at[task] < self.dwell(task) {
+                continue;
+            }
+            self.trial_order.clear();
+            self.trial_order.extend_from_slice(&self.stacked);
+            let at = self.trial_order.partition_point(|&t| t < task);
+            self.trial_order.insert(at, task);
+            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let predicted_back = predicted_value(cost, &back)?;
+            if predicted_back < now.predicted_cost && predicted_back <= threshold {
+                return Ok(Some((task, predicted_back)));
+            }
         }
         Ok(None)
     }
@@ -1370,6 +1436,9 @@ fn predicted_value<const N: usize>(
     cost: &dyn Cost<N>,
     q: &JointVector<N>,
 ) -> Result<f64, CostError> {
+    if cost.forbids(q) {
+        return Ok(f64::INFINITY);
+    }
     match cost.value(q) {
         Err(CostError::PointBehindCamera { .. }) => Ok(f64::INFINITY),
         other => other,

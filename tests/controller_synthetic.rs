@@ -403,6 +403,37 @@ fn default_parameters_take_the_threshold_from_the_cost() {
     );
 }
 
+/// D6: a prediction beyond a hard limit is a danger whatever `h_max`. With a threshold the joint-limit cost cannot
+/// reach (its largest value at a limit is `½ (ρΔq)²/Δq = 0.01` on these joints), "reach" is still removed before
+/// joint 0 crosses its limit, because the configuration predicted `T` ahead is outside the limits.
+#[test]
+fn a_prediction_beyond_a_hard_limit_removes_the_task_whatever_the_threshold() {
+    let out_of_reach = ControllerParameters {
+        removal_threshold: Some(1.0),
+        ..Default::default()
+    };
+    let run = run(out_of_reach, 1.0);
+    let removal_at = run
+        .events
+        .iter()
+        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
+        .map(|e| e.0)
+        .expect("reach removed");
+    assert!(
+        run.hit.is_none_or(|(_, k)| k > removal_at),
+        "events {:?}, hit {:?}",
+        run.events,
+        run.hit
+    );
+    // The limit is kept until the fallback (as with a reachable threshold), not hit right after the removal.
+    let kept_until = run
+        .events
+        .iter()
+        .find(|e| e.1 == EventKind::Fallback)
+        .map_or(run.sent.len(), |e| e.0);
+    assert!(run.hit.is_none_or(|(_, k)| k >= kept_until));
+}
+
 /// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
 /// it is the only change of that iteration.
 #[test]

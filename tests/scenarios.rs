@@ -87,6 +87,35 @@ fn on_the_rail7_chain_with_a_restricted_shoulder_the_full_method_removes_and_rei
     ));
 }
 
+/// D7 relief: a task kept out while the robot still moves comes back when the cost rises and its return lowers it. On
+/// this turned-view Afma6 case the target grows out of the image with a_n out (the run ends `feature_lost` without the
+/// rule); with it, a_n is put back by the test before the target is lost and the run converges with every task.
+#[test]
+fn a_removed_task_comes_back_when_its_return_keeps_the_target_in_view() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/scenarios/afma6_view_turned.toml"
+    ));
+    let scenario = Scenario::from_file(path).unwrap();
+    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    assert_eq!(run.outcome, Outcome::Converged, "{:?}", run.events);
+    assert_eq!(
+        run.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    let area = run.task_names.iter().position(|n| n == "area").unwrap();
+    let removal = run
+        .events_of(EventKind::Remove)
+        .find(|e| e.task == area)
+        .expect("a_n removed");
+    assert!(
+        run.events_of(EventKind::Reinsert)
+            .any(|e| e.task == area && e.iteration > removal.iteration),
+        "a_n put back by the test, not by the fallback: {:?}",
+        run.events
+    );
+}
+
 /// The text of the UR5e scenario with one line replaced (the line must exist).
 fn edited(from: &str, to: &str) -> String {
     assert!(UR5E.contains(from), "fixture line not found: {from}");

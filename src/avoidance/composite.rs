@@ -135,6 +135,11 @@ impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
             .filter_map(|term| term.default_removal_threshold())
             .reduce(f64::min)
     }
+
+    /// Whether any term forbids `q`.
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        self.terms.iter().any(|term| term.forbids(q))
+    }
 }
 
 #[cfg(test)]
@@ -184,5 +189,17 @@ mod tests {
             CompositeCost::<2>::new().dominant_term(&q).unwrap(),
             "composite"
         );
+    }
+
+    /// A configuration is forbidden when any term forbids it: beyond b's hard limit on joint 1 (0.5) but inside a's.
+    #[test]
+    fn forbidden_where_any_term_forbids() {
+        let a = JointLimits::new(Vector2::new(-1.0, -1.0), Vector2::new(1.0, 1.0), 0.1).unwrap();
+        let b = JointLimits::new(Vector2::new(-2.0, -0.5), Vector2::new(2.0, 0.5), 0.2).unwrap();
+        let sum = CompositeCost::new().with(&a).with(&b);
+        assert!(!sum.forbids(&Vector2::new(0.99, 0.5)));
+        assert!(sum.forbids(&Vector2::new(0.0, 0.51)));
+        assert!(sum.forbids(&Vector2::new(-1.01, 0.0)));
+        assert!(!CompositeCost::<2>::new().forbids(&Vector2::new(5.0, 5.0)));
     }
 }

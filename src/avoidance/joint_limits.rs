@@ -167,6 +167,11 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
         Some(JointLimits::default_removal_threshold(self))
     }
 
+    /// A joint outside its hard limits ([`JointLimits::violated_joint`]).
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        self.violated_joint(q).is_some()
+    }
+
     /// [\[M20\]](crate::theory#m20).
     fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
         if let Some((joint, value)) = first_non_finite(q) {

@@ -265,6 +265,14 @@ pub trait Cost<const N: usize> {
     fn default_removal_threshold(&self) -> Option<f64> {
         None
     }
+
+    /// Whether `q` lies where the cost guards against reaching, not merely near it: beyond a hard joint limit for
+    /// [`JointLimits`]. The stack controller treats a prediction there as an infinite cost whatever `h_max`
+    /// ([D6](crate::theory#d6)). Default: `false`.
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        let _ = q;
+        false
+    }
 }
 
 /// A reference to a cost is the same cost (so a [`CompositeCost`] can hold borrowed terms).
@@ -291,6 +299,10 @@ impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
 
     fn default_removal_threshold(&self) -> Option<f64> {
         (**self).default_removal_threshold()
+    }
+
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        (**self).forbids(q)
     }
 }
 
