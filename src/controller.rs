@@ -901,7 +901,9 @@ impl<const N: usize> StackController<N> {
         let mut predicted_gradient = JointVector::zeros();
         result.predicted_cost = match cost.value_and_gradient(&predicted, &mut predicted_gradient) {
             Err(CostError::PointBehindCamera { .. }) => f64::INFINITY,
-            _ if cost.forbids(&predicted) => f64::INFINITY,
+            _ if self.parameters.rule == DecisionRule::Robust && cost.forbids(&predicted) => {
+                f64::INFINITY
+            }
             other => other?,
         };
         // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
@@ -1017,7 +1019,7 @@ impl<const N: usize> StackController<N> {
             return Ok(None);
         }
         let guard_now = match guard {
-            Some(guard) if robust => predicted_value(guard, predicted)?,
+            Some(guard) if robust => self.predicted_value(guard, predicted)?,
             _ => 0.0,
         };
         for rank in 0..self.ranking.len() {
@@ -1032,7 +1034,7 @@ impl<const N: usize> StackController<N> {
             self.trial_order
                 .extend(self.stacked.iter().copied().filter(|&t| t != task));
             let without = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-            let predicted_without = predicted_value(cost, &without)?;
+            let predicted_without = self.predicted_value(cost, &without)?;
             if !robust {
                 return Ok(Some((task, predicted_without)));
             }
@@ -1040,7 +1042,7 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             if let Some(guard) = guard {
-                if predicted_value(guard, &without)? > guard_now {
+                if self.predicted_value(guard, &without)? > guard_now {
                     continue;
                 }
             }
@@ -1085,7 +1087,7 @@ impl<const N: usize> StackController<N> {
             let at = self.trial_order.partition_point(|&t| t < task);
             self.trial_order.insert(at, task);
             let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-            let predicted_back = predicted_value(cost, &back)?;
+            let predicted_back = self.predicted_value(cost, &back)?;
             if predicted_back < now.predicted_cost && predicted_back <= threshold {
                 return Ok(Some((task, predicted_back)));
             }
@@ -1189,7 +1191,7 @@ impl<const N: usize> StackController<N> {
                     };
                     let back =
                         prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-                    predicted_value(cost, &back)?
+                    self.predicted_value(cost, &back)?
                 }
                 _ => 0.0,
             };
@@ -1316,13 +1318,22 @@ impl<const N: usize> StackController<N> {
                 let horizon = self.parameters.reinsertion_look_ahead / back_gain;
                 let swapped =
                     prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-                let predicted_cost = predicted_value(cost, &swapped)?;
+                let predicted_cost = self.predicted_value(cost, &swapped)?;
                 if predicted_cost <= threshold {
                     return Ok(Some((back, out, predicted_cost)));
                 }
             }
         }
         Ok(None)
+    }
+
+    /// The cost of a predicted configuration: [`predicted_value`], and under the robust rule `+∞` where the cost
+    /// forbids it ([`Cost::forbids`], D6).
+    fn predicted_value(&self, cost: &dyn Cost<N>, q: &JointVector<N>) -> Result<f64, CostError> {
+        if self.parameters.rule == DecisionRule::Robust && cost.forbids(q) {
+            return Ok(f64::INFINITY);
+        }
+        predicted_value(cost, q)
     }
 
     /// `T_dwell · 2^{k−1}`: how long a task removed `k` times stays out at least (D7).
@@ -1436,9 +1447,6 @@ fn predicted_value<const N: usize>(
     cost: &dyn Cost<N>,
     q: &JointVector<N>,
 ) -> Result<f64, CostError> {
-    if cost.forbids(q) {
-        return Ok(f64::INFINITY);
-    }
     match cost.value(q) {
         Err(CostError::PointBehindCamera { .. }) => Ok(f64::INFINITY),
         other => other,
