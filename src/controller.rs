@@ -47,8 +47,9 @@
 //!      the last swap (**anti-cycling**: two tasks traded back and forth is chatter);
 //!    * if a removed task is still refused `stall_timeout` seconds after its first refused test, the controller
 //!      **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
-//!      — from there on the law is the stack with projected gradient. The event log says so
-//!      ([`EventKind::Fallback`]);
+//!      on the `h_max` test — only as a **last resort**, when the prediction is past a hard limit or loses the target
+//!      (the fallback's law is about to fail there); a task so removed comes back without the test after its dwell.
+//!      From there on the law is the stack with projected gradient. The event log says so ([`EventKind::Fallback`]);
 //!    * when no task is out, the next task of the list is **pushed** (D5).
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
@@ -198,7 +199,7 @@ pub struct ControllerParameters {
     /// A task removed this many times is no longer a removal candidate (D7; default 4).
     pub max_removals: u32,
     /// `T_stall` (s): a removed task still refused this long after its first refused re-insertion test is put back
-    /// anyway, and removals stop (D13 fallback; default 5 s).
+    /// anyway, and removals stop except as a last resort (D13 fallback; default 5 s).
     pub stall_timeout: f64,
     /// Whether tasks may be removed at all (`false`: push-only, as the paper's runs 2 and 3).
     pub allow_removal: bool,
@@ -384,7 +385,8 @@ pub enum EventKind {
     Remove,
     /// A removed task was put back at its original priority (D7).
     Reinsert,
-    /// A removed task that could not come back was put back without the test, and removals stopped (D13).
+    /// A removed task was put back without the test: the first that could not come back, after which removals stop
+    /// except as a last resort, or one removed as a last resort, after its dwell (D13).
     Fallback,
 }
 
@@ -514,7 +516,7 @@ pub struct StackController<const N: usize> {
     refused_since: Option<f64>,
     /// The last re-insertion test: (task, predicted cost, threshold).
     last_reinsertion_test: Option<(usize, f64, f64)>,
-    /// D13: removals stopped after a fallback.
+    /// D13: removals stopped after a fallback, except as a last resort.
     fallback: bool,
     change_pending: bool,
     last_change_time: f64,
@@ -638,7 +640,8 @@ impl<const N: usize> StackController<N> {
         self.next_push == self.task_count && self.removed.is_empty()
     }
 
-    /// `true` once the controller has fallen back to the stack with gradient (D13): no task is removed any more.
+    /// `true` once the controller has fallen back to the stack with gradient (D13): no task is removed any more, except
+    /// as a last resort when the prediction is past a hard limit or loses the target.
     pub fn has_fallen_back(&self) -> bool {
         self.fallback
     }
@@ -933,7 +936,9 @@ impl<const N: usize> StackController<N> {
             );
             return Ok(Some(EventKind::Reinsert));
         }
-        if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time) {
+        // A prediction past a hard limit (or losing the target) is a danger the fallback's law is about to fail on.
+        let imminent = result.predicted_cost == f64::INFINITY;
+        if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time, imminent) {
             let choice = self.choose_removal(
                 law,
                 tasks,
@@ -978,9 +983,10 @@ impl<const N: usize> StackController<N> {
         self.settle_and_add(law, tasks, Some(cost), &prediction, iteration, time, result)
     }
 
-    /// Whether a removal may be made now: removals allowed, no fallback, and (robust rule) the last removal at least
-    /// `n_change/μ` old. A removal right after a push is allowed: the push is what the removal answers.
-    fn may_remove(&self, law: &ControlLaw, time: f64) -> bool {
+    /// Whether a removal may be made now: removals allowed, no fallback unless the danger is `imminent` (the prediction
+    /// is past a hard limit or loses the target: the D13 last resort, robust rule), and (robust rule) the last removal
+    /// at least `n_change/μ` old. A removal right after a push is allowed: the push is what the removal answers.
+    fn may_remove(&self, law: &ControlLaw, time: f64, imminent: bool) -> bool {
         let parameters = &self.parameters;
         let spaced = match parameters.rule {
             DecisionRule::Robust => {
@@ -989,7 +995,11 @@ impl<const N: usize> StackController<N> {
             }
             DecisionRule::Paper => true,
         };
-        parameters.allow_removal && !self.fallback && !self.stacked.is_empty() && spaced
+        let after_fallback = imminent && parameters.rule == DecisionRule::Robust;
+        parameters.allow_removal
+            && (!self.fallback || after_fallback)
+            && !self.stacked.is_empty()
+            && spaced
     }
 
     /// D6: the task to remove and the cost predicted without it, or `None` when no candidate qualifies.
@@ -1172,7 +1182,7 @@ impl<const N: usize> StackController<N> {
         for rank in 0..self.removed.len() {
             let task = self.removed[rank];
             let removed_for = time - self.removed_at[task];
-            if robust && !self.fallback && removed_for < self.dwell(task) {
+            if robust && removed_for < self.dwell(task) {
                 continue;
             }
             let predicted_cost = match cost {
@@ -1261,7 +1271,8 @@ impl<const N: usize> StackController<N> {
         }
         let waiting_since = *self.refused_since.get_or_insert(time);
         if robust && time - waiting_since >= self.parameters.stall_timeout {
-            // D13: the first removed task comes back without the test; from now on no task is removed.
+            // D13: the first removed task comes back without the test; from now on tasks are removed only as a last
+            // resort.
             self.fallback = true;
             let task = self.removed[0];
             let (predicted_cost, threshold) = match self.last_reinsertion_test {

@@ -175,34 +175,54 @@ fn push_only_with_avoidance_hits_the_limit() {
 /// "reach" wants joint 0 beyond its hard limit: no configuration achieves it within the limits. The robust rule
 /// removes it once (the task whose motion points into the limit), pushes the next task while it is out, keeps it out
 /// while the prediction with it back exceeds the threshold, and after the stall timeout falls back to the stack with
-/// gradient (D13) — logged with the prediction that refused it — whereupon the limit is reached as push-only does.
-/// No chatter: one removal, no re-insertion by the test.
+/// gradient (D13) — logged with the prediction that refused it. Each time the fallback's law is about to cross the
+/// limit, the last-resort removal takes "reach" out again, and it comes back (without the test) only after its dwell,
+/// doubled at every removal; once it has been removed `max_removals` times it stays, and the limit is reached as
+/// push-only does. No re-insertion by the test, and the limit is never hit while the task is out.
 #[test]
-fn an_unachievable_task_is_removed_once_then_the_controller_falls_back() {
+fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_resort_removals() {
     let parameters = ControllerParameters::default();
     let run = run(parameters, 1.0);
-    let removals: Vec<usize> = run
+    let removals: Vec<(usize, usize)> = run
         .events
         .iter()
         .filter(|e| e.1 == EventKind::Remove)
-        .map(|e| e.2)
+        .map(|e| (e.0, e.2))
         .collect();
-    assert_eq!(removals, [1], "events: {:?}", run.events);
-    let removal_at = run
+    let fallbacks: Vec<(usize, usize)> = run
         .events
         .iter()
-        .find(|e| e.1 == EventKind::Remove)
-        .unwrap()
-        .0;
+        .filter(|e| e.1 == EventKind::Fallback)
+        .map(|e| (e.0, e.2))
+        .collect();
+    assert!(
+        removals.iter().all(|&(_, task)| task == 1),
+        "events: {:?}",
+        run.events
+    );
+    assert!(fallbacks.iter().all(|&(_, task)| task == 1));
+    assert_eq!(
+        removals.len(),
+        parameters.max_removals as usize,
+        "events: {:?}",
+        run.events
+    );
+    assert_eq!(fallbacks.len(), removals.len());
     // "side" (task 2) is pushed while "reach" is out.
     assert!(run
         .events
         .iter()
-        .any(|&(k, kind, task)| kind == EventKind::Push && task == 2 && k > removal_at));
+        .any(|&(k, kind, task)| kind == EventKind::Push && task == 2 && k > removals[0].0));
     assert!(!run.events.iter().any(|e| e.1 == EventKind::Reinsert));
     let (predicted, removed_for) = run.fallback_report.expect("a fallback");
     assert!(predicted > parameters.reinsertion_ratio * limits().default_removal_threshold());
     assert!(removed_for >= parameters.stall_timeout);
+    // After the first, every return waits at least the doubled dwell T_dwell · 2^{k−1} of the k-th removal.
+    for (k, (&(removed, _), &(back, _))) in removals.iter().zip(&fallbacks).enumerate().skip(1) {
+        let out_for = (back - removed) as f64 * 0.01;
+        let dwell = parameters.reinsertion_dwell * f64::from(1u32 << k);
+        assert!(out_for >= dwell - 1e-9, "removal {k}: out {out_for} s");
+    }
     // The removed task scored highest: its motion is aligned with ∇h (joint 0 upwards), the others are orthogonal.
     let best = run
         .first_removal_criteria
@@ -210,16 +230,11 @@ fn an_unachievable_task_is_removed_once_then_the_controller_falls_back() {
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap();
     assert_eq!(best.0, 1);
-    // Until the fallback the limit is kept; after it, the stack with gradient reaches it as push-only does.
-    let fallback_at = run
-        .events
-        .iter()
-        .find(|e| e.1 == EventKind::Fallback)
-        .unwrap()
-        .0;
+    // The limit is kept while "reach" is out and until its last return; then it is reached as push-only does.
+    let last_back = fallbacks.last().unwrap().0;
     assert!(run
         .hit
-        .is_some_and(|(joint, k)| joint == 0 && k > fallback_at));
+        .is_some_and(|(joint, k)| joint == 0 && k > last_back));
     assert_continuous_at_events(&run, 0.01);
 }
 
