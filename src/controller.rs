@@ -47,8 +47,9 @@
 //!      the last swap (**anti-cycling**: two tasks traded back and forth is chatter);
 //!    * if a removed task is still refused `stall_timeout` seconds after its first refused test, the controller
 //!      **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
-//!      on the `h_max` test — only as a **last resort**, when the prediction is past a hard limit or loses the target
-//!      (the fallback's law is about to fail there); a task so removed comes back without the test after its dwell.
+//!      on the `h_max` test — only as a **last resort**, when the prediction `max(T, 1/μ)` ahead (the time a removal
+//!      needs to act) is past a hard limit or loses the target (the fallback's law is about to fail there), at most once
+//!      per task; a task so removed comes back without the test after its dwell.
 //!      From there on the law is the stack with projected gradient. The event log says so ([`EventKind::Fallback`]);
 //!    * when no task is out, the next task of the list is **pushed** (D5).
 //!
@@ -512,6 +513,8 @@ pub struct StackController<const N: usize> {
     /// Per task: how many times it was removed, and when last.
     removal_count: Vec<u32>,
     removed_at: Vec<f64>,
+    /// Per task: whether the last resort of D13 has removed it (at most once per task).
+    last_resort_used: Vec<bool>,
     /// The time of the first refused re-insertion test since the last change (the stall clock of D13).
     refused_since: Option<f64>,
     /// The last re-insertion test: (task, predicted cost, threshold).
@@ -580,6 +583,7 @@ impl<const N: usize> StackController<N> {
             removed: Vec::with_capacity(count),
             protected: vec![false; count],
             removal_count: vec![0; count],
+            last_resort_used: vec![false; count],
             removed_at: vec![0.0; count],
             refused_since: None,
             last_reinsertion_test: None,
@@ -936,17 +940,25 @@ impl<const N: usize> StackController<N> {
             );
             return Ok(Some(EventKind::Reinsert));
         }
-        // A prediction past a hard limit (or losing the target) is a danger the fallback's law is about to fail on.
-        let imminent = result.predicted_cost == f64::INFINITY;
-        if danger_predicted && danger.norm() > 0.0 && self.may_remove(law, time, imminent) {
+        // After the fallback, only the last resort of D13: the law is about to cross a hard limit (or lose the target)
+        // within the time a removal needs to act, `max(T, n_resort/μ)`.
+        let (trigger, removal_horizon, reference) = if self.fallback {
+            let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
+            let far_value = self.predicted_value(cost, &prediction.at(output.law(), far))?;
+            let imminent = self.parameters.rule == DecisionRule::Robust && far_value.is_infinite();
+            (imminent, far, f64::INFINITY)
+        } else {
+            (danger_predicted, horizon, result.predicted_cost)
+        };
+        if trigger && danger.norm() > 0.0 && self.may_remove(law, time) {
             let choice = self.choose_removal(
                 law,
                 tasks,
                 cost,
                 guard,
                 &prediction,
-                horizon,
-                result.predicted_cost,
+                removal_horizon,
+                reference,
                 &predicted,
             )?;
             if let Some((task, predicted_cost_without)) = choice {
@@ -955,6 +967,7 @@ impl<const N: usize> StackController<N> {
                 let at = self.removed.partition_point(|&t| t < task);
                 self.removed.insert(at, task);
                 self.removal_count[task] += 1;
+                self.last_resort_used[task] |= self.fallback;
                 self.removed_at[task] = time;
                 self.last_removal_time = time;
                 self.last_reinsertion_test = None;
@@ -962,7 +975,7 @@ impl<const N: usize> StackController<N> {
                     predicted_cost: result.predicted_cost,
                     threshold,
                     predicted_cost_without,
-                    horizon,
+                    horizon: removal_horizon,
                     joint: predicted_gradient.iamax(),
                     cost: dominant,
                     criteria: self.criteria.clone(),
@@ -983,10 +996,10 @@ impl<const N: usize> StackController<N> {
         self.settle_and_add(law, tasks, Some(cost), &prediction, iteration, time, result)
     }
 
-    /// Whether a removal may be made now: removals allowed, no fallback unless the danger is `imminent` (the prediction
-    /// is past a hard limit or loses the target: the D13 last resort, robust rule), and (robust rule) the last removal
-    /// at least `n_change/μ` old. A removal right after a push is allowed: the push is what the removal answers.
-    fn may_remove(&self, law: &ControlLaw, time: f64, imminent: bool) -> bool {
+    /// Whether a removal may be made now: removals allowed, a task stacked, and (robust rule) the last removal at least
+    /// `n_change/μ` old. A removal right after a push is allowed: the push is what the removal answers. After the
+    /// fallback the caller asks this only for the last resort of D13.
+    fn may_remove(&self, law: &ControlLaw, time: f64) -> bool {
         let parameters = &self.parameters;
         let spaced = match parameters.rule {
             DecisionRule::Robust => {
@@ -995,11 +1008,7 @@ impl<const N: usize> StackController<N> {
             }
             DecisionRule::Paper => true,
         };
-        let after_fallback = imminent && parameters.rule == DecisionRule::Robust;
-        parameters.allow_removal
-            && (!self.fallback || after_fallback)
-            && !self.stacked.is_empty()
-            && spaced
+        parameters.allow_removal && !self.stacked.is_empty() && spaced
     }
 
     /// D6: the task to remove and the cost predicted without it, or `None` when no candidate qualifies.
@@ -1036,7 +1045,8 @@ impl<const N: usize> StackController<N> {
             let task = self.ranking[rank].task;
             if robust
                 && (self.protected[task]
-                    || self.removal_count[task] >= self.parameters.max_removals)
+                    || self.removal_count[task] >= self.parameters.max_removals
+                    || (self.fallback && self.last_resort_used[task]))
             {
                 continue;
             }
@@ -1463,6 +1473,10 @@ fn predicted_value<const N: usize>(
         other => other,
     }
 }
+
+/// `n_resort`: the last resort of D13 looks `max(T, n_resort/μ)` ahead, the time a removal needs to take effect
+/// through the transition of D1.
+const LAST_RESORT_TRANSITIONS: f64 = 1.0;
 
 /// Below this norm of `J_i⁺ e_i` the task is achieved and `C1'_i` is set to 0 ([D3](crate::theory#d3)).
 const DIRECTION_FLOOR: f64 = 1e-12;
