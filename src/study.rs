@@ -5,8 +5,9 @@
 //! A study takes a scenario, draws `K` situations per **family** — starts perturbed around the scenario's start (mild,
 //! strong, wide), the goal configuration moved, the desired view turned about the target, starts drawn uniformly
 //! inside the joint limits — and runs the four methods of [`RunKind`] on every draw. Draws are seeded: draw `k` of
-//! family `f` under seed `s` is the same on every machine and in every thread, so a study is reproducible and its
-//! draws run in parallel on all cores (rayon).
+//! the family at position `f` of the study's list under seed `s` is the same on every machine and in every thread, so
+//! a study is reproducible and its draws run in parallel on all cores (rayon). The stream depends on the position,
+//! not the name: a study of one family draws what the first family of any study draws.
 //!
 //! A draw whose situation is not a valid experiment (a start outside the limits, a target not entirely in the image at
 //! the start, a goal outside the limits) is drawn again from the same stream, up to [`MAX_ATTEMPTS`] times; the number
