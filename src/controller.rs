@@ -406,13 +406,14 @@ impl EventKind {
 /// Why a task was removed.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RemovalReport {
-    /// The predicted cost `h(q̂)` that exceeded the threshold.
+    /// The predicted cost `h(q̂)` at [`Self::horizon`] that exceeded the threshold (`+∞` past a hard limit or with the
+    /// target lost, as for the last resort of D13).
     pub predicted_cost: f64,
     /// The threshold `h_max`.
     pub threshold: f64,
     /// The predicted cost with the task removed (smaller than `predicted_cost` under [`DecisionRule::Robust`]).
     pub predicted_cost_without: f64,
-    /// The prediction horizon `T` (s).
+    /// The prediction horizon (s): `T`, or `max(T, n_resort/μ)` for the last resort of D13.
     pub horizon: f64,
     /// The joint with the largest component of the predicted gradient `∇h(q̂)` (0-based).
     pub joint: usize,
@@ -972,7 +973,7 @@ impl<const N: usize> StackController<N> {
                 self.last_removal_time = time;
                 self.last_reinsertion_test = None;
                 let report = RemovalReport {
-                    predicted_cost: result.predicted_cost,
+                    predicted_cost: reference,
                     threshold,
                     predicted_cost_without,
                     horizon: removal_horizon,

@@ -50,6 +50,8 @@ struct Run {
     first_removal_criteria: Vec<(usize, f64)>,
     first_removal_threshold: Option<f64>,
     fallback_report: Option<(f64, f64)>,
+    /// Per removal, in order: the predicted cost that triggered it and the horizon of that prediction (s).
+    removal_predictions: Vec<(f64, f64)>,
     /// Per iteration: the velocity sent `q̇_k` and the law `u_k` it was blended from.
     sent: Vec<JointVector<3>>,
     laws: Vec<JointVector<3>>,
@@ -110,8 +112,15 @@ fn run_tasks(
         .find(|e| e.kind == EventKind::Fallback)
         .and_then(|e| e.reinsertion)
         .map(|r| (r.predicted_cost, r.removed_for));
+    let removal_predictions = controller
+        .events()
+        .iter()
+        .filter_map(|e| e.removal.as_ref())
+        .map(|r| (r.predicted_cost, r.horizon))
+        .collect();
     Run {
         hit,
+        removal_predictions,
         events: controller
             .events()
             .iter()
@@ -202,8 +211,14 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
     );
     assert!(fallbacks.iter().all(|&(_, task)| task == 1));
     assert_eq!(removals.len(), 2, "events: {:?}", run.events);
-    // The second removal is the last resort: after the first fallback.
+    // The second removal is the last resort: after the first fallback, for a prediction past the hard limit one
+    // transition time ahead (1/μ, longer than the removal horizon T of the first).
     assert!(removals[1].0 > fallbacks[0].0);
+    let (first_cost, first_horizon) = run.removal_predictions[0];
+    let (last_resort_cost, last_resort_horizon) = run.removal_predictions[1];
+    assert!(first_cost.is_finite() && first_horizon == parameters.prediction_horizon);
+    assert_eq!(last_resort_cost, f64::INFINITY);
+    assert!(last_resort_horizon >= 1.0 / run.mu - 1e-12 && last_resort_horizon > first_horizon);
     assert_eq!(fallbacks.len(), removals.len());
     // "side" (task 2) is pushed while "reach" is out.
     assert!(run
