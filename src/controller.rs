@@ -174,7 +174,10 @@ pub struct ControllerParameters {
     /// when the transition term has decayed to `e^{−5} ≈ 0.7 %`).
     pub settle_transitions: f64,
     /// `T_min` (s): the shortest prediction horizon (D6; default 0.05 s). With [`DecisionRule::Paper`] it is the
-    /// horizon.
+    /// horizon. Measured at 0.1 s (200 draws per family, seed 1, velocities saturated): the UR5e's uniform starts
+    /// converge in 82 instead of 68 (the elbow's 0.055 rad band is crossed in 8 periods at 0.7 rad/s) but cover the
+    /// same 37 of the 48 draws a baseline wins, while the Afma6 loses turned views (191 instead of 200 at ≤ 10°) and
+    /// uniform starts (115 instead of 119).
     pub prediction_horizon: f64,
     /// `n_look`: the prediction horizon is `T = max(T_min, n_look/μ)` (D6; default 0: `T = T_min`). Measured by the
     /// convergence-domain study, a longer horizon (1 or 2 transitions) raises false alarms right after a push, when
