@@ -1050,13 +1050,11 @@ impl<const N: usize> StackController<N> {
             if robust
                 && (self.protected[task]
                     || self.removal_count[task] >= self.parameters.max_removals
-                    || (self.fallback && self.last_resort_used[task]))
+                    || self.last_resort_used[task])
             {
                 continue;
             }
-            self.trial_order.clear();
-            self.trial_order
-                .extend(self.stacked.iter().copied().filter(|&t| t != task));
+            self.set_trial_stack(None, Some(task));
             let without = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_without = self.predicted_value(cost, &without)?;
             if !robust {
@@ -1106,10 +1104,7 @@ impl<const N: usize> StackController<N> {
             if time - self.removed_at[task] < self.dwell(task) {
                 continue;
             }
-            self.trial_order.clear();
-            self.trial_order.extend_from_slice(&self.stacked);
-            let at = self.trial_order.partition_point(|&t| t < task);
-            self.trial_order.insert(at, task);
+            self.set_trial_stack(Some(task), None);
             let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_back = self.predicted_value(cost, &back)?;
             if predicted_back < now.predicted_cost && predicted_back <= threshold {
@@ -1117,6 +1112,22 @@ impl<const N: usize> StackController<N> {
             }
         }
         Ok(None)
+    }
+
+    /// `self.trial_order` ← the stacked tasks without `left_out`, with `added` at its priority: the stack a removal,
+    /// a re-insertion or a swap would make.
+    fn set_trial_stack(&mut self, added: Option<usize>, left_out: Option<usize>) {
+        self.trial_order.clear();
+        self.trial_order.extend(
+            self.stacked
+                .iter()
+                .copied()
+                .filter(|&t| Some(t) != left_out),
+        );
+        if let Some(task) = added {
+            let at = self.trial_order.partition_point(|&t| t < task);
+            self.trial_order.insert(at, task);
+        }
     }
 
     /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order`.
@@ -1201,10 +1212,7 @@ impl<const N: usize> StackController<N> {
             }
             let predicted_cost = match cost {
                 Some(cost) if !self.fallback => {
-                    self.trial_order.clear();
-                    self.trial_order.extend_from_slice(&self.stacked);
-                    let at = self.trial_order.partition_point(|&t| t < task);
-                    self.trial_order.insert(at, task);
+                    self.set_trial_stack(Some(task), None);
                     // The look-ahead spans the task's own time constant 1/λ_i: for a task converging as e^{−λ_i t},
                     // q + u/λ_i is where its linearised law would take the robot.
                     let horizon = match (robust, tasks.get(task)) {
@@ -1335,11 +1343,7 @@ impl<const N: usize> StackController<N> {
                 if self.protected[out] || self.removal_count[out] >= self.parameters.max_removals {
                     continue;
                 }
-                self.trial_order.clear();
-                self.trial_order
-                    .extend(self.stacked.iter().copied().filter(|&t| t != out));
-                let at = self.trial_order.partition_point(|&t| t < back);
-                self.trial_order.insert(at, back);
+                self.set_trial_stack(Some(back), Some(out));
                 let horizon = self.parameters.reinsertion_look_ahead / back_gain;
                 let swapped =
                     prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
