@@ -48,6 +48,9 @@ pub struct VisualTask {
     name: String,
     feature: BoxedFeature,
     desired: DVector<f64>,
+    /// Per row, whether its error is wrapped as an angle ([`Feature::is_angle`], read once here: a feature set
+    /// answers it by walking its features, which cost as much as the error itself on every step).
+    angle_rows: Box<[bool]>,
     gain: f64,
     source: InteractionSource,
     desired_interaction: Option<InteractionMatrix>,
@@ -105,10 +108,14 @@ impl VisualTask {
         };
         // Validates the gain and the row count.
         TaskValue::<0>::new(name, feature.dim(), gain)?;
+        let angle_rows = (0..feature.dim())
+            .map(|row| feature.is_angle(row))
+            .collect();
         Ok(Self {
             name: name.into(),
             feature,
             desired: desired_value,
+            angle_rows,
             gain,
             source,
             desired_interaction,
@@ -163,9 +170,13 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
         self.feature
             .value(context.observation, error.as_mut_slice())
             .map_err(|e| feature_error(&self.name, e))?;
-        for (row, (e, s_star)) in error.iter_mut().zip(self.desired.iter()).enumerate() {
+        for ((e, s_star), &angle) in error
+            .iter_mut()
+            .zip(self.desired.iter())
+            .zip(self.angle_rows.iter())
+        {
             let difference = *e - s_star;
-            *e = if self.feature.is_angle(row) {
+            *e = if angle {
                 wrap_angle(difference)
             } else {
                 difference

@@ -128,3 +128,68 @@ fn square_seen_head_on_is_a_feature_error() {
         other => panic!("expected a feature error, got {other:?}"),
     }
 }
+
+/// The angle row of a stacked feature set is wrapped into `(−π, π]` (D8): with the diagonal at `π − δ` in the desired
+/// image and at `−π + δ` in the current one, the task error is `2δ`, not `2δ − 2π`; the centroid rows beside it are
+/// plain differences. Fails if the rows' angle flags are misread (e.g. taken from the wrong row of the set).
+#[test]
+fn the_angle_row_of_a_feature_set_is_wrapped() {
+    use servostack::camera::ImagePoint;
+    use servostack::feature::{Centroid, DiagonalAngle, FeatureSet, Observation};
+    let delta: f64 = 0.05;
+    // Point 0 at the origin, point 2 at unit distance along the angle; points 1 and 3 off the diagonal.
+    let points_at = |angle: f64, shift: f64| {
+        [
+            (shift, 0.0),
+            (shift + 0.1, -0.2),
+            (shift + angle.cos() * 0.3, angle.sin() * 0.3),
+            (shift - 0.2, 0.1),
+        ]
+        .map(|(x, y)| ImagePoint { x, y, depth: 1.0 })
+    };
+    let desired_points = points_at(std::f64::consts::PI - delta, 0.0);
+    let current_points = points_at(-std::f64::consts::PI + delta, 0.02);
+    let desired = Observation::new(&desired_points, None).unwrap();
+    let current = Observation::new(&current_points, None).unwrap();
+    let feature = FeatureSet::new(vec![
+        Box::new(Centroid::new(1.0).unwrap()),
+        Box::new(DiagonalAngle::new(0, 2).unwrap()),
+    ]);
+    let task = VisualTask::new(
+        "centroid and angle",
+        Box::new(feature),
+        &desired,
+        1.0,
+        InteractionSource::Exact,
+    )
+    .unwrap();
+    let camera_jacobian = servostack::math::KinematicJacobian::<6>::identity();
+    let context = VisualContext {
+        observation: &current,
+        camera_jacobian: &camera_jacobian,
+    };
+    let mut value = TaskValue::for_task::<VisualContext<'_, 6>, _>(&task).unwrap();
+    task.evaluate(&context, &mut value).unwrap();
+    let error = value.error();
+    // x_g, y_g: the means of the four points.
+    let mean = |points: &[ImagePoint; 4], pick: fn(&ImagePoint) -> f64| {
+        points.iter().map(pick).sum::<f64>() / 4.0
+    };
+    let expected_x = mean(&current_points, |p| p.x) - mean(&desired_points, |p| p.x);
+    let expected_y = mean(&current_points, |p| p.y) - mean(&desired_points, |p| p.y);
+    assert!(
+        (error[0] - expected_x).abs() < 1e-12,
+        "x_g error {}",
+        error[0]
+    );
+    assert!(
+        (error[1] - expected_y).abs() < 1e-12,
+        "y_g error {}",
+        error[1]
+    );
+    assert!(
+        (error[2] - 2.0 * delta).abs() < 1e-12,
+        "angle error {}",
+        error[2]
+    );
+}
