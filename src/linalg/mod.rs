@@ -189,9 +189,11 @@ fn check_rows(what: &'static str, expected: usize, found: usize) -> Result<(), L
     }
 }
 
-/// `out = a · b` for a matrix `a` with a run-time number of rows and a small fixed-size `b` (`K × N`), row by row on
-/// fixed-size rows: allocation-free and without the packing of a general matrix product (nalgebra's dynamic `gemm`
-/// hands sizes like `8 × 6 · 6 × 6` to a blocked kernel that allocates its packing buffers).
+/// `out = a · b` for a matrix `a` with a run-time number of rows and a small fixed-size `b` (`K × N`), row by row:
+/// `out_ij = a_iᵀ b_j` with the row `a_i` copied to a fixed-size array and `b_j` a column of `b`, contiguous (summed in
+/// the order of `k`). Allocation-free and without the packing of a general matrix product (nalgebra's dynamic `gemm`
+/// hands sizes like `8 × 6 · 6 × 6` to a blocked kernel that allocates its packing buffers), nor its generic
+/// row-times-matrix product.
 pub(crate) fn mul_rows_to<const K: usize, const N: usize, R, SA, SO>(
     a: &Matrix<f64, R, Const<K>, SA>,
     b: &nalgebra::SMatrix<f64, K, N>,
@@ -201,7 +203,13 @@ pub(crate) fn mul_rows_to<const K: usize, const N: usize, R, SA, SO>(
     SA: RawStorage<f64, R, Const<K>>,
     SO: StorageMut<f64, R, Const<N>>,
 {
-    for (row, mut out_row) in a.row_iter().zip(out.row_iter_mut()) {
-        out_row.copy_from(&(row * b));
+    for i in 0..a.nrows().min(out.nrows()) {
+        let row: [f64; K] = std::array::from_fn(|k| a[(i, k)]);
+        for (j, column) in b.as_slice().chunks_exact(K).enumerate() {
+            out[(i, j)] = row
+                .iter()
+                .zip(column.iter())
+                .fold(0.0, |sum, (a, b)| sum + a * b);
+        }
     }
 }
