@@ -13,9 +13,13 @@ pub const FAST_PATH_CONDITION_BOUND: f64 = 1e3;
 /// SVD).
 ///
 /// ```text
-/// G = AᵀA = L Lᵀ                    (Cholesky of the normal equations, N × N)
+/// G = AᵀA = L Lᵀ = L₁ D L₁ᵀ         (Cholesky of the normal equations, N × N, L = L₁ D^{1/2})
 /// x₀ = L⁻ᵀ L⁻¹ Aᵀ r,   x = x₀ + L⁻ᵀ L⁻¹ Aᵀ (r − A x₀)      (one step of refinement on A itself)
 /// ```
+///
+/// The factor is computed without its square roots, as `L₁ D L₁ᵀ` (`L₁` unit lower triangular, `D` the pivots), and
+/// `L⁻¹ = D^{−1/2} L₁⁻¹` is used through `L₁⁻¹` and `D⁻¹`: the same factorisation, with one division per pivot on
+/// its dependency chain instead of a square root and a division.
 ///
 /// **Certificate.** `‖G⁻¹‖₂ ≤ ‖L⁻¹‖_F²` bounds the smallest eigenvalue of the factored matrix from below, and the
 /// rounding of forming and factoring `G` is at most `2 (m + N + 1) ε ‖A‖_F²` in the 2-norm (the classical bounds
@@ -100,8 +104,8 @@ where
         frobenius_sq += g[i][i];
     }
     let b: [f64; N] = std::array::from_fn(|j| dot(&padded[j], &rhs));
-    let inverse = cholesky_inverse(&g)?; // L⁻¹, lower triangular
-    let inverse_frobenius_sq: f64 = inverse.iter().flatten().map(|x| x * x).sum();
+    let inverse = FactorInverse::factor(&g)?;
+    let inverse_frobenius_sq = inverse.frobenius_sq();
     let rounding = 2.0 * (rows + N + 1) as f64 * f64::EPSILON * frobenius_sq;
     let lower_sq = 1.0 / inverse_frobenius_sq - rounding;
     let conditioned = frobenius_sq / (FAST_PATH_CONDITION_BOUND * FAST_PATH_CONDITION_BOUND);
@@ -114,7 +118,7 @@ where
         return None;
     }
     // x₀ = L⁻ᵀ (L⁻¹ b), then x = x₀ + L⁻ᵀ L⁻¹ Aᵀ (r − A x₀), the residual formed from A.
-    let mut x = normal_solve(&inverse, &b);
+    let mut x = inverse.solve(&b);
     let mut residual = rhs;
     for (column, &xj) in padded.iter().zip(x.iter()) {
         residual
@@ -122,10 +126,7 @@ where
             .zip(column.iter())
             .for_each(|(res, a)| *res -= a * xj);
     }
-    let correction = normal_solve(
-        &inverse,
-        &std::array::from_fn(|j| dot(&padded[j], &residual)),
-    );
+    let correction = inverse.solve(&std::array::from_fn(|j| dot(&padded[j], &residual)));
     x.iter_mut()
         .zip(correction.iter())
         .for_each(|(x, c)| *x += c);
@@ -136,53 +137,92 @@ where
     Some(lower)
 }
 
-/// `G⁻¹ b = L⁻ᵀ (L⁻¹ b)` from `L⁻¹` (lower triangular, by rows).
-fn normal_solve<const N: usize>(inverse: &[[f64; N]; N], b: &[f64; N]) -> [f64; N] {
-    let mut y = [0.0; N];
-    for (i, row) in inverse.iter().enumerate() {
-        y[i] = row[..=i].iter().zip(b.iter()).map(|(l, b)| l * b).sum();
-    }
-    let mut x = [0.0; N];
-    for (i, row) in inverse.iter().enumerate() {
-        for (x, l) in x[..=i].iter_mut().zip(row.iter()) {
-            *x += l * y[i];
-        }
-    }
-    x
+/// The inverse of the Cholesky factor `L = L₁ D^{1/2}` of a symmetric positive definite `G = L₁ D L₁ᵀ`, kept as its
+/// square-root-free parts: `L⁻¹ = D^{−1/2} M` with `M = L₁⁻¹` (unit lower triangular, by rows) and `D⁻¹`. The
+/// factorisation is the `L Lᵀ` one without its square roots (one division per pivot on the dependency chain instead
+/// of a square root and a division); its rounding obeys the Cholesky bound `γ_{N+1} |L||Lᵀ|` with `L = L₁ D^{1/2}`.
+struct FactorInverse<const N: usize> {
+    /// `M = L₁⁻¹`, unit lower triangular, by rows.
+    unit: [[f64; N]; N],
+    /// `1/d_i`, the reciprocal pivots.
+    reciprocal_pivots: [f64; N],
 }
 
-/// The inverse `L⁻¹` (lower triangular, by rows) of the Cholesky factor of the symmetric matrix whose lower triangle is
-/// `g` (by rows), or `None` when a pivot is not strictly positive and finite (not numerically positive definite).
-fn cholesky_inverse<const N: usize>(g: &[[f64; N]; N]) -> Option<[[f64; N]; N]> {
-    let mut l = [[0.0; N]; N];
-    let mut reciprocal = [0.0; N];
-    for j in 0..N {
-        let pivot = g[j][j] - l[j][..j].iter().map(|x| x * x).sum::<f64>();
-        if !(pivot > 0.0 && pivot.is_finite()) {
-            return None;
+impl<const N: usize> FactorInverse<N> {
+    /// `L₁ D L₁ᵀ` of the symmetric matrix whose lower triangle is `g` (by rows) and the inverse of its factor, or `None`
+    /// when a pivot is not strictly positive and finite (not numerically positive definite).
+    fn factor(g: &[[f64; N]; N]) -> Option<Self> {
+        // `l[i][k]` = (L₁)_ik, `w[i][k]` = (L₁)_ik d_k, for k < i.
+        let mut l = [[0.0; N]; N];
+        let mut w = [[0.0; N]; N];
+        let mut reciprocal_pivots = [0.0; N];
+        for j in 0..N {
+            let pivot = g[j][j]
+                - w[j][..j]
+                    .iter()
+                    .zip(l[j][..j].iter())
+                    .map(|(w, l)| w * l)
+                    .sum::<f64>();
+            if !(pivot > 0.0 && pivot.is_finite()) {
+                return None;
+            }
+            let reciprocal = 1.0 / pivot;
+            reciprocal_pivots[j] = reciprocal;
+            for i in (j + 1)..N {
+                let product: f64 = w[i][..j]
+                    .iter()
+                    .zip(l[j][..j].iter())
+                    .map(|(w, l)| w * l)
+                    .sum();
+                let scaled = g[i][j] - product;
+                w[i][j] = scaled;
+                l[i][j] = scaled * reciprocal;
+            }
         }
-        let diagonal = pivot.sqrt();
-        l[j][j] = diagonal;
-        reciprocal[j] = 1.0 / diagonal;
-        for i in (j + 1)..N {
-            let product: f64 = l[i][..j]
-                .iter()
-                .zip(l[j][..j].iter())
-                .map(|(a, b)| a * b)
-                .sum();
-            l[i][j] = (g[i][j] - product) * reciprocal[j];
+        // Forward substitution, row by row: L₁ M = I, M_ij = −Σ_{j≤k<i} (L₁)_ik M_kj.
+        let mut unit = [[0.0; N]; N];
+        for (i, l_row) in l.iter().enumerate() {
+            let (done, rest) = unit.split_at_mut(i);
+            let Some(row) = rest.first_mut() else { break };
+            for (j, entry) in row[..i].iter_mut().enumerate() {
+                *entry = -(j..i).map(|k| l_row[k] * done[k][j]).sum::<f64>();
+            }
+            row[i] = 1.0;
         }
+        Some(Self {
+            unit,
+            reciprocal_pivots,
+        })
     }
-    // Forward substitution, column by column: L X = I.
-    let mut inverse = [[0.0; N]; N];
-    for j in 0..N {
-        inverse[j][j] = reciprocal[j];
-        for i in (j + 1)..N {
-            let sum: f64 = (j..i).map(|k| l[i][k] * inverse[k][j]).sum();
-            inverse[i][j] = -sum * reciprocal[i];
-        }
+
+    /// `‖L⁻¹‖_F² = Σ_i ‖M_i‖² / d_i`.
+    fn frobenius_sq(&self) -> f64 {
+        self.unit
+            .iter()
+            .zip(self.reciprocal_pivots.iter())
+            .map(|(row, r)| r * row.iter().map(|x| x * x).sum::<f64>())
+            .sum()
     }
-    Some(inverse)
+
+    /// `G⁻¹ b = Mᵀ D⁻¹ (M b)`.
+    fn solve(&self, b: &[f64; N]) -> [f64; N] {
+        let mut y = [0.0; N];
+        for (i, row) in self.unit.iter().enumerate() {
+            y[i] = self.reciprocal_pivots[i]
+                * row[..=i]
+                    .iter()
+                    .zip(b.iter())
+                    .map(|(m, b)| m * b)
+                    .sum::<f64>();
+        }
+        let mut x = [0.0; N];
+        for (i, row) in self.unit.iter().enumerate() {
+            for (x, m) in x[..=i].iter_mut().zip(row.iter()) {
+                *x += m * y[i];
+            }
+        }
+        x
+    }
 }
 
 /// The largest condition number `σ_max/σ_min` for which [`solve_small_full_row_rank`] and
