@@ -240,6 +240,9 @@ pub struct MethodSummary {
     pub outcomes: std::collections::BTreeMap<&'static str, usize>,
     /// The median number of removals per run.
     pub median_removals: f64,
+    /// The median over runs of the largest number of removals of one task in the run (how often the same task is
+    /// taken out: the measure of chatter).
+    pub median_removals_of_a_task: f64,
     /// The largest number of removals of one task in one run.
     pub max_removals_of_a_task: usize,
     /// Runs that fell back (D13).
@@ -566,6 +569,9 @@ impl<'a> Study<'a> {
                     draws: results.len(),
                     outcomes,
                     median_removals: median(results.iter().map(|r| r.removals as f64)),
+                    median_removals_of_a_task: median(
+                        results.iter().map(|r| r.max_removals_of_a_task as f64),
+                    ),
                     max_removals_of_a_task: results
                         .iter()
                         .map(|r| r.max_removals_of_a_task)
@@ -777,8 +783,8 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>8} {:>9} {:>9}",
-            "removals", "fallback", "covered", "worse", "pose"
+            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9}",
+            "removals", "per task", "fallback", "covered", "worse", "pose"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -791,8 +797,9 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>8} {:>9} {:>9}",
+                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
+                full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
                 format!(
                     "{}/{}",
@@ -806,7 +813,8 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            "removals: median per run of the full method; covered: draws where the full method converged among those \
+            "removals: median per run of the full method; per task: median over runs of the most removals of one task; \
+             covered: draws where the full method converged among those \
              where a baseline did; worse: draws where stack_gradient converged and the full method did not; pose: \
              converged runs of the full method whose camera ended within {} mm / {}° of its goal",
             POSE_TOLERANCE_M * 1e3,

@@ -42,6 +42,26 @@ fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_g
             family.family.name
         );
         assert_eq!(family.full_method_worse_than_stack_gradient, 0);
+        // The per-task median is the median over the draws of each run's most removals of one task.
+        let full_index = family
+            .methods
+            .iter()
+            .position(|m| m.method == RunKind::StackController)
+            .unwrap();
+        let mut most: Vec<f64> = family
+            .draws
+            .iter()
+            .map(|d| d.methods[full_index].max_removals_of_a_task as f64)
+            .collect();
+        most.sort_by(f64::total_cmp);
+        let middle = most.len() / 2;
+        let expected = if most.len().is_multiple_of(2) {
+            0.5 * (most[middle - 1] + most[middle])
+        } else {
+            most[middle]
+        };
+        assert_eq!(full.median_removals_of_a_task, expected);
+        assert!(full.median_removals_of_a_task <= 2.0);
         for draw in &family.draws {
             for method in &draw.methods {
                 // A run that spent its budget names its reason.
