@@ -6,6 +6,16 @@ use crate::camera::ImagePoint;
 /// Highest moment order computed.
 const MAX_ORDER: usize = 3;
 
+/// Number of moments `μ_ij` with `i + j ≤ MAX_ORDER`.
+const MOMENT_COUNT: usize = (MAX_ORDER + 1) * (MAX_ORDER + 2) / 2;
+
+/// Where `μ_ij` (`i + j ≤ MAX_ORDER`) is stored: by order `i + j`, then by `j` (`μ00, μ10, μ01, μ20, μ11, μ02, …`).
+/// The triangular storage keeps [`Moments`] small: it is moved into its observation's cache at every step.
+const fn packed(i: usize, j: usize) -> usize {
+    let order = i + j;
+    order * (order + 1) / 2 + j
+}
+
 /// The centroid and the centred moments `μ_ij` (`i + j ≤ 3`) of a set of N image points, with their exact
 /// interaction rows, computed once per point set by [`super::Observation::new`] and shared by every feature.
 ///
@@ -26,8 +36,10 @@ pub struct Moments {
     yg: f64,
     l_xg: InteractionRow,
     l_yg: InteractionRow,
-    mu: [[f64; MAX_ORDER + 1]; MAX_ORDER + 1],
-    l_mu: [[InteractionRow; MAX_ORDER + 1]; MAX_ORDER + 1],
+    /// `μ_ij` at [`packed`]`(i, j)`.
+    mu: [f64; MOMENT_COUNT],
+    /// `L_{μ_ij}` at [`packed`]`(i, j)`.
+    l_mu: [InteractionRow; MOMENT_COUNT],
     /// `Σ (x_k² + y_k²)`, scale of the relative test on `a`.
     scale: f64,
 }
@@ -80,9 +92,11 @@ impl Moments {
         mu[1][0] = 0.0;
         mu[0][1] = 0.0;
 
-        let mut l_mu = [[zero; MAX_ORDER + 1]; MAX_ORDER + 1];
+        let mut packed_mu = [0.0; MOMENT_COUNT];
+        let mut l_mu = [zero; MOMENT_COUNT];
         for i in 0..=MAX_ORDER {
             for j in 0..=MAX_ORDER - i {
+                packed_mu[packed(i, j)] = mu[i][j];
                 if i + j < 2 {
                     continue; // μ_00, μ_10, μ_01 are constants.
                 }
@@ -93,7 +107,7 @@ impl Moments {
                 if j > 0 {
                     row += (sum_y[i][j - 1] - l_yg * mu[i][j - 1]) * j as f64;
                 }
-                l_mu[i][j] = row;
+                l_mu[packed(i, j)] = row;
             }
         }
         Self {
@@ -102,7 +116,7 @@ impl Moments {
             yg,
             l_xg,
             l_yg,
-            mu,
+            mu: packed_mu,
             l_mu,
             scale,
         }
@@ -110,12 +124,10 @@ impl Moments {
 
     /// `true` when every moment and row is finite (false only on overflow of extreme coordinates).
     pub(super) fn is_finite(&self) -> bool {
-        let rows = [&self.l_xg, &self.l_yg]
-            .into_iter()
-            .chain(self.l_mu.iter().flatten());
+        let rows = [&self.l_xg, &self.l_yg].into_iter().chain(self.l_mu.iter());
         [self.xg, self.yg, self.scale]
             .iter()
-            .chain(self.mu.iter().flatten())
+            .chain(self.mu.iter())
             .all(|v| v.is_finite())
             && rows.into_iter().all(crate::math::all_finite)
     }
@@ -147,12 +159,12 @@ impl Moments {
 
     /// Centred moment `μ_ij` \[M34\], or `None` when `i + j > 3`.
     pub fn mu(&self, i: usize, j: usize) -> Option<f64> {
-        (i + j <= MAX_ORDER).then(|| self.mu[i][j])
+        (i + j <= MAX_ORDER).then(|| self.mu[packed(i, j)])
     }
 
     /// Exact interaction row of `μ_ij` \[M35\], or `None` when `i + j > 3`.
     pub fn interaction_mu(&self, i: usize, j: usize) -> Option<&InteractionRow> {
-        (i + j <= MAX_ORDER).then(|| &self.l_mu[i][j])
+        (i + j <= MAX_ORDER).then(|| &self.l_mu[packed(i, j)])
     }
 
     /// The second-order size `a = μ20 + μ02` \[M37\] (`= I3` of \[M40\]) and its row `L_{μ20} + L_{μ02}`.
@@ -160,14 +172,14 @@ impl Moments {
     /// # Errors
     /// [`FeatureError::DegenerateArea`] when `a ≤ RELATIVE_TOLERANCE · Σ (x_k² + y_k²)` (the points coincide).
     pub fn size(&self) -> Result<(f64, InteractionRow), FeatureError> {
-        let a = self.mu[2][0] + self.mu[0][2];
+        let a = self.mu[packed(2, 0)] + self.mu[packed(0, 2)];
         if a <= RELATIVE_TOLERANCE * self.scale {
             return Err(FeatureError::DegenerateArea {
                 a,
                 scale: self.scale,
             });
         }
-        Ok((a, self.l_mu[2][0] + self.l_mu[0][2]))
+        Ok((a, self.l_mu[packed(2, 0)] + self.l_mu[packed(0, 2)]))
     }
 
     /// The anisotropy `I1 / I3² = ((μ20 − μ02)² + 4 μ11²) / (μ20 + μ02)²` \[M40\] (dimensionless, in `[0, 1]`): 0 when
@@ -187,10 +199,10 @@ impl Moments {
     /// [`FeatureError::DegenerateArea`] as [`Moments::size`].
     pub(super) fn second_order_terms(&self) -> Result<Orientation, FeatureError> {
         let (i3, l_i3) = self.size()?;
-        let c1 = self.mu[2][0] - self.mu[0][2];
-        let s1 = 2.0 * self.mu[1][1];
-        let l_c1 = self.l_mu[2][0] - self.l_mu[0][2];
-        let l_s1 = self.l_mu[1][1] * 2.0;
+        let c1 = self.mu[packed(2, 0)] - self.mu[packed(0, 2)];
+        let s1 = 2.0 * self.mu[packed(1, 1)];
+        let l_c1 = self.l_mu[packed(2, 0)] - self.l_mu[packed(0, 2)];
+        let l_s1 = self.l_mu[packed(1, 1)] * 2.0;
         Ok(Orientation {
             c1,
             s1,
@@ -218,13 +230,13 @@ impl Moments {
 
     /// Third-order terms of \[M40\]: `c2 = μ03 − 3 μ21`, `s2 = μ30 − 3 μ12` and their rows.
     pub(super) fn third_order_terms(&self) -> (f64, f64, InteractionRow, InteractionRow) {
-        let m = &self.mu;
-        let l = &self.l_mu;
+        let m = |i, j| self.mu[packed(i, j)];
+        let l = |i, j| self.l_mu[packed(i, j)];
         (
-            m[0][3] - 3.0 * m[2][1],
-            m[3][0] - 3.0 * m[1][2],
-            l[0][3] - l[2][1] * 3.0,
-            l[3][0] - l[1][2] * 3.0,
+            m(0, 3) - 3.0 * m(2, 1),
+            m(3, 0) - 3.0 * m(1, 2),
+            l(0, 3) - l(2, 1) * 3.0,
+            l(3, 0) - l(1, 2) * 3.0,
         )
     }
 }
@@ -240,4 +252,42 @@ pub(super) struct Orientation {
     pub l_s1: InteractionRow,
     pub l_i1: InteractionRow,
     pub l_i3: InteractionRow,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every stored moment is the one asked for: `μ_ij` against its definition `Σ Δx^i Δy^j` on an irregular point
+    /// set, for every `i + j ≤ 3` (a wrong slot of the packed storage would return another moment), and `None` beyond.
+    #[test]
+    fn every_moment_is_stored_in_its_own_slot() {
+        let points = [
+            (0.11, -0.03),
+            (-0.07, 0.05),
+            (0.02, 0.19),
+            (-0.13, -0.08),
+            (0.05, 0.01),
+        ]
+        .map(|(x, y)| ImagePoint { x, y, depth: 1.0 });
+        let moments = Moments::compute(&points, |p| 1.0 / p.depth);
+        let n = points.len() as f64;
+        let xg = points.iter().map(|p| p.x).sum::<f64>() / n;
+        let yg = points.iter().map(|p| p.y).sum::<f64>() / n;
+        for i in 0..=MAX_ORDER {
+            for j in 0..=MAX_ORDER - i {
+                let direct: f64 = points
+                    .iter()
+                    .map(|p| (p.x - xg).powi(i as i32) * (p.y - yg).powi(j as i32))
+                    .sum();
+                let stored = moments.mu(i, j).unwrap();
+                assert!(
+                    (stored - direct).abs() < 1e-15,
+                    "μ_{i}{j}: {stored} vs {direct}"
+                );
+            }
+        }
+        assert_eq!(moments.mu(2, 2), None);
+        assert!(moments.interaction_mu(0, 4).is_none());
+    }
 }
