@@ -291,14 +291,18 @@ pub fn solve_stack<'w, const N: usize>(
         let mut r = residual.rows_mut(0, rows);
         r.copy_from(task.error());
         r *= -task.gain();
-        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0), decomposed in place into W = J̃_i V.
+        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0, read in place by the certified
+        // paths and copied only for the SVD), decomposed in place into W = J̃_i V.
         let mut w = limited.rows_mut(0, rows);
-        if level == 0 {
-            w.copy_from(task.jacobian());
-        } else {
+        if level > 0 {
             r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
             mul_rows_to(task.jacobian(), &solution.projector, &mut w);
         }
+        let limited_jacobian = if level == 0 {
+            task.jacobian().rows(0, rows)
+        } else {
+            w.rows(0, rows)
+        };
         let scale = task.jacobian().norm();
         // Two certified paths without the SVD (D15), each answering only when it can confirm what the SVD would decide:
         // a level that sees every joint direction free (P^A_{i−1} = I) with at least N rows, of full column rank N
@@ -308,11 +312,12 @@ pub fn solve_stack<'w, const N: usize>(
         let eligible = free == N && rows >= N && truncated;
         let policy = &parameters.rank_policy;
         let certified = if eligible && *try_certified {
-            solve_full_column_rank(&w, &r, policy, scale, step).map(|bound| (N, bound))
+            solve_full_column_rank(&limited_jacobian, &r, policy, scale, step)
+                .map(|bound| (N, bound))
         } else if rows <= 2 && truncated {
             // A level that takes the last free directions leaves P^A_i = 0 (set below): no update to compute.
             let projector = (free > rows).then_some(&mut solution.projector);
-            solve_small_stack_level(&w, &r, policy, scale, step, projector)
+            solve_small_stack_level(&limited_jacobian, &r, policy, scale, step, projector)
                 .map(|sigma_min| (rows, sigma_min))
         } else {
             None
@@ -320,6 +325,9 @@ pub fn solve_stack<'w, const N: usize>(
         let (rank, smallest_kept_singular_value) = match certified {
             Some((rank, sigma_min)) => (rank, Some(sigma_min)),
             None => {
+                if level == 0 {
+                    w.copy_from(task.jacobian());
+                }
                 svd.decompose_warm(&mut w, policy, scale)
                     .map_err(|source| StackError::Linalg { level, source })?;
                 svd.solve(&w, &r, parameters.velocity_inverse, step)
