@@ -439,53 +439,109 @@ proptest! {
         scale_exponent in -3.0..3.0f64,
         repeat in prop_oneof![Just(0.0), 1e-9..1e-2f64],
     ) {
-        let upper = data.rows(0, higher).into_owned();
-        let mut work = upper.clone();
-        let policy = RankPolicy::default();
-        let projector = null_space_projector(&upper, &mut work, &policy).unwrap();
-        let mut jacobian = data.rows(3, rows).into_owned() * 10f64.powf(scale_exponent);
-        if higher > 0 && repeat > 0.0 {
-            // The first row nearly repeats a higher one: J̃'s first row is then of size `repeat`.
-            let nearly = upper.row(0) * 10f64.powf(scale_exponent) + jacobian.row(0) * repeat;
-            jacobian.set_row(0, &nearly);
-        }
-        let limited = &jacobian * projector;
-        let reference_scale = jacobian.norm();
-        let r = DVector::from_column_slice(&r[..rows]);
+        small_stack_level_case(rows, higher, &data, &r, scale_exponent, repeat)?;
+    }
+}
 
-        let mut step = JointVector::<6>::zeros();
-        let mut updated = projector;
-        let answer = solve_small_stack_level(&limited, &r, &policy, reference_scale, &mut step, Some(&mut updated));
+/// A case the property test drew (CI, 2026-11-24): a two-row level with `σ_max/σ_min` near the closed form's bound of
+/// 100, where `J̃ᵀ G⁻¹ r` differed from the SVD's step by 1.5e−12 relative to `‖r‖/σ_min` (the Gram matrix's
+/// `κ² ε`). Such a level is now solved on its orthonormalised rows.
+#[test]
+fn small_stack_level_near_its_condition_bound() {
+    #[rustfmt::skip]
+    let data = [
+        -0.05400316187491307, 0.0, 0.0, -0.39391713018247715, -0.3063496069323168,
+        0.6776333728847183, 0.0, 0.0, -0.5521455180567124, 0.67267562425311,
+        0.5116143114569465, 0.0, 0.0, 0.9732363089450511, 0.5858384270152098,
+        -0.03180147527318344, 0.0, 0.0, 0.11701828835453477, -0.037429620306119946,
+        -0.9539495414044997, 0.0, 0.0, 0.6481908445055161, -0.24860501751427339,
+        -0.5516326052398346, 0.0, 0.0, -0.7996199839652245, 0.0059766528860344635,
+    ];
+    // Column-major storage of a 5 × 6 matrix, as the strategy's `VecStorage`.
+    let data = OMatrix::<f64, Dyn, Const<6>>::from_column_slice_generic(Dyn(5), Const::<6>, &data);
+    let result = small_stack_level_case(
+        2,
+        1,
+        &data,
+        &[-0.7789892592286352, 0.0],
+        -0.5641262746195611,
+        0.004473792960606814,
+    );
+    assert!(result.is_ok(), "{result:?}");
+}
 
-        let mut svd = ColumnSvd::<6>::default();
-        let mut w = limited.clone();
-        svd.decompose_with_scale(&mut w, &policy, reference_scale).unwrap();
-        let mut reference_step = JointVector::<6>::zeros();
-        svd.solve(&w, &r, VelocityInverse::Truncated, &mut reference_step).unwrap();
-        let mut reference_projector = projector;
-        svd.subtract_row_space_projector(&mut reference_projector);
-        let singular = limited.clone().transpose().svd(false, false).singular_values;
-        let (sigma_max, sigma_min) = (singular.max(), singular.min());
-        let clear = sigma_min * SMALL_PATH_CONDITION_BOUND > 1.01 * sigma_max
-            && sigma_min > 2.01 * policy.threshold(sigma_max.max(reference_scale));
-        match answer {
-            Some(answered_sigma_min) => {
-                prop_assert_eq!(svd.rank(), rows);
-                prop_assert!((answered_sigma_min - sigma_min).abs() <= 1e-9 * sigma_min);
-                let tolerance = 1e-12 * (r.norm() / sigma_min + 1.0);
-                prop_assert!((step - reference_step).norm() <= tolerance, "{step} vs {reference_step}");
-                let difference = (updated - reference_projector).amax();
-                prop_assert!(difference <= 1e-12, "|P − P_svd| = {difference:e}");
-                prop_assert_eq!(updated, updated.transpose());
-            }
-            None => {
-                prop_assert!(!clear, "σ = {sigma_min} .. {sigma_max}: no answer");
-                prop_assert_eq!(step, JointVector::<6>::zeros());
-                prop_assert_eq!(updated, projector);
-            }
+/// The body of [`small_stack_level_matches_the_svd`], shared with its recorded failures.
+fn small_stack_level_case(
+    rows: usize,
+    higher: usize,
+    data: &OMatrix<f64, Dyn, Const<6>>,
+    r: &[f64],
+    scale_exponent: f64,
+    repeat: f64,
+) -> Result<(), TestCaseError> {
+    let upper = data.rows(0, higher).into_owned();
+    let mut work = upper.clone();
+    let policy = RankPolicy::default();
+    let projector = null_space_projector(&upper, &mut work, &policy).unwrap();
+    let mut jacobian = data.rows(3, rows).into_owned() * 10f64.powf(scale_exponent);
+    if higher > 0 && repeat > 0.0 {
+        // The first row nearly repeats a higher one: J̃'s first row is then of size `repeat`.
+        let nearly = upper.row(0) * 10f64.powf(scale_exponent) + jacobian.row(0) * repeat;
+        jacobian.set_row(0, &nearly);
+    }
+    let limited = &jacobian * projector;
+    let reference_scale = jacobian.norm();
+    let r = DVector::from_column_slice(&r[..rows]);
+
+    let mut step = JointVector::<6>::zeros();
+    let mut updated = projector;
+    let answer = solve_small_stack_level(
+        &limited,
+        &r,
+        &policy,
+        reference_scale,
+        &mut step,
+        Some(&mut updated),
+    );
+
+    let mut svd = ColumnSvd::<6>::default();
+    let mut w = limited.clone();
+    svd.decompose_with_scale(&mut w, &policy, reference_scale)
+        .unwrap();
+    let mut reference_step = JointVector::<6>::zeros();
+    svd.solve(&w, &r, VelocityInverse::Truncated, &mut reference_step)
+        .unwrap();
+    let mut reference_projector = projector;
+    svd.subtract_row_space_projector(&mut reference_projector);
+    let singular = limited
+        .clone()
+        .transpose()
+        .svd(false, false)
+        .singular_values;
+    let (sigma_max, sigma_min) = (singular.max(), singular.min());
+    let clear = sigma_min * SMALL_PATH_CONDITION_BOUND > 1.01 * sigma_max
+        && sigma_min > 2.01 * policy.threshold(sigma_max.max(reference_scale));
+    match answer {
+        Some(answered_sigma_min) => {
+            prop_assert_eq!(svd.rank(), rows);
+            prop_assert!((answered_sigma_min - sigma_min).abs() <= 1e-9 * sigma_min);
+            let tolerance = 1e-12 * (r.norm() / sigma_min + 1.0);
+            prop_assert!(
+                (step - reference_step).norm() <= tolerance,
+                "{step} vs {reference_step}"
+            );
+            let difference = (updated - reference_projector).amax();
+            prop_assert!(difference <= 1e-12, "|P − P_svd| = {difference:e}");
+            prop_assert_eq!(updated, updated.transpose());
         }
-        if higher > 0 && repeat > 0.0 && repeat < 1e-7 {
-            prop_assert!(answer.is_none());
+        None => {
+            prop_assert!(!clear, "σ = {sigma_min} .. {sigma_max}: no answer");
+            prop_assert_eq!(step, JointVector::<6>::zeros());
+            prop_assert_eq!(updated, projector);
         }
     }
+    if higher > 0 && repeat > 0.0 && repeat < 1e-7 {
+        prop_assert!(answer.is_none());
+    }
+    Ok(())
 }
