@@ -852,7 +852,8 @@ fn budget_outcome<const N: usize>(
         } => Outcome::Stalled {
             task,
             reason: format!(
-                "{} was removed and its re-insertion was refused to the end: the cost predicted with it back is                  {predicted_cost:.2e} > {threshold:.2e} (task errors: {error_list})",
+                "{} was removed and its re-insertion was refused to the end: the cost predicted with it back is \
+                 {predicted_cost:.2e} > {threshold:.2e} (task errors: {error_list})",
                 task_names[task]
             ),
         },
@@ -862,7 +863,8 @@ fn budget_outcome<const N: usize>(
         } => Outcome::Stalled {
             task: next,
             reason: format!(
-                "{} was never pushed: the stack did not settle (‖q̇_n‖ = {stack_velocity_norm:.2e} at the end; task                  errors: {error_list})",
+                "{} was never pushed: the stack did not settle (‖q̇_n‖ = {stack_velocity_norm:.2e} at the end; task \
+                 errors: {error_list})",
                 task_names[next]
             ),
         },

@@ -355,6 +355,24 @@ fn a_run_that_ends_at_once_has_no_nan_in_its_summary() {
 }
 
 #[test]
+fn a_run_out_of_budget_before_its_pushes_names_the_task_it_waited_for() {
+    // One iteration: the centroid is pushed at the first, the angle task can never be.
+    let mut scenario = Scenario::from_toml_str(UR5E_SCENARIO, None).unwrap();
+    scenario.simulation.max_iterations = 1;
+    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let Outcome::Stalled { task, reason } = &run.outcome else {
+        panic!("expected a stalled run, got {:?}", run.outcome);
+    };
+    assert_eq!(*task, 1);
+    assert!(reason.starts_with("angle was never pushed"), "{reason}");
+    // The reason is one sentence for people: the error of every task, no run of blanks left by a line break.
+    for name in ["centroid", "angle", "area"] {
+        assert!(reason.contains(name), "{reason}");
+    }
+    assert!(!reason.contains("  "), "{reason:?}");
+}
+
+#[test]
 fn errors_are_shown_with_field_and_value_not_the_input() {
     // The Debug form of a syntax error holds the whole TOML (the description included); the Display chain names the
     // field and its line only.
