@@ -22,7 +22,11 @@
 //!    back at once — without waiting for the robot to settle — when the law with it back, predicted the same way,
 //!    gives a lower `h(q̂)` than the current stack and one under `r_back · h_max` (the motion a removal freed may itself
 //!    raise the cost: with `a_n` out, the camera may drift until the target grows out of the image). Not within
-//!    `n_change/μ` of the last change, never during the fallback.
+//!    `n_change/μ` of the last change, never during the fallback. With a **guard** cost (below), the same holds for
+//!    the guard, one transition time ahead and during the fallback too: while `g(q̂(max(T, n_resort/μ)))` is positive
+//!    and above `g(q)`, the first removed task whose return lowers that prediction comes back at once, whatever its
+//!    dwell (**guard relief**: the free motion a removal leaves may carry the target out of the image long after the
+//!    removal passed its own guard test).
 //!
 //!    **Removal** (D6), when `h(q̂) > h_max`, `h(q̂) > h(q)` (the danger grows), the gradient `∇h(q)` — or `∇h(q̂)`
 //!    when the robot is still outside every activation band — is non-zero, and the last change is at least
@@ -944,6 +948,21 @@ impl<const N: usize> StackController<N> {
             );
             return Ok(Some(EventKind::Reinsert));
         }
+        if let Some(guard) = guard {
+            if let Some((task, predicted_back, predicted_without)) =
+                self.choose_guard_relief(law, tasks, guard, &prediction, output, horizon, time)?
+            {
+                self.reinsert(
+                    task,
+                    EventKind::Reinsert,
+                    iteration,
+                    time,
+                    predicted_back,
+                    predicted_without,
+                );
+                return Ok(Some(EventKind::Reinsert));
+            }
+        }
         // After the fallback, only the last resort of D13: the law is about to cross a hard limit (or lose the target)
         // within the time a removal needs to act, `max(T, n_resort/μ)`.
         let (trigger, removal_horizon, reference) = if self.fallback {
@@ -1109,6 +1128,48 @@ impl<const N: usize> StackController<N> {
             let predicted_back = self.predicted_value(cost, &back)?;
             if predicted_back < now.predicted_cost && predicted_back <= threshold {
                 return Ok(Some((task, predicted_back)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// D7 guard relief: while the `guard` cost (the visibility of the target, in the simulation) is predicted to rise
+    /// to a positive value one transition time ahead (`g(q̂(max(T, n_resort/μ))) > max(g(q), 0)`), the first removed
+    /// task by priority whose return lowers that prediction comes back at once, whatever its dwell and during the
+    /// fallback too: losing the target ends the run, and the free motion a removal leaves may carry the target out of
+    /// the image long after the removal's own guard test. Returns the task, the guard's prediction with it back and
+    /// without it. Robust rule only, not within `n_change/μ` of the last change.
+    #[allow(clippy::too_many_arguments)]
+    fn choose_guard_relief(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        guard: &dyn Cost<N>,
+        prediction: &Prediction<'_, N>,
+        output: &ControlOutput<N>,
+        horizon: f64,
+        time: f64,
+    ) -> Result<Option<(usize, f64, f64)>, ControllerError> {
+        if self.removed.is_empty()
+            || self.parameters.rule != DecisionRule::Robust
+            || time - self.last_change_time
+                < self.parameters.change_transitions / law.transition_gain()
+        {
+            return Ok(None);
+        }
+        let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
+        let now = self.predicted_value(guard, prediction.q)?;
+        let without = self.predicted_value(guard, &prediction.at(output.law(), far))?;
+        if without <= now.max(0.0) {
+            return Ok(None);
+        }
+        for rank in 0..self.removed.len() {
+            let task = self.removed[rank];
+            self.set_trial_stack(Some(task), None);
+            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, far);
+            let predicted_back = self.predicted_value(guard, &back)?;
+            if predicted_back < without {
+                return Ok(Some((task, predicted_back, without)));
             }
         }
         Ok(None)

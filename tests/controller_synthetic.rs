@@ -52,6 +52,8 @@ struct Run {
     fallback_report: Option<(f64, f64)>,
     /// Per removal, in order: the predicted cost that triggered it and the horizon of that prediction (s).
     removal_predictions: Vec<(f64, f64)>,
+    /// Per re-insertion (not fallback), in order: the prediction it was judged on and the threshold it passed.
+    reinsertion_predictions: Vec<(f64, f64)>,
     /// Per iteration: the velocity sent `q̇_k` and the law `u_k` it was blended from.
     sent: Vec<JointVector<3>>,
     laws: Vec<JointVector<3>>,
@@ -77,6 +79,18 @@ fn run_tasks(
     kappa: f64,
     iterations: usize,
 ) -> Run {
+    run_guarded(tasks, start, parameters, kappa, None, iterations)
+}
+
+/// As [`run_tasks`], with a `guard` cost given to the controller (D6 (d), D7's guard relief).
+fn run_guarded(
+    tasks: Vec<LinearTask<3>>,
+    start: JointVector<3>,
+    parameters: ControllerParameters,
+    kappa: f64,
+    guard: Option<&dyn Cost<3>>,
+    iterations: usize,
+) -> Run {
     let mut values: Vec<TaskValue<3>> = tasks
         .iter()
         .map(|t| TaskValue::for_task(t).unwrap())
@@ -91,7 +105,15 @@ fn run_tasks(
     for iteration in 0..iterations {
         evaluate(&tasks, &mut values, &q);
         let step = controller
-            .step(&law, &values, cost, &q, iteration, iteration as f64 * dt)
+            .step_guarded(
+                &law,
+                &values,
+                cost,
+                guard,
+                &q,
+                iteration,
+                iteration as f64 * dt,
+            )
             .unwrap();
         sent.push(step.velocity);
         laws.push(*controller.law_workspace().last_output().law());
@@ -118,9 +140,17 @@ fn run_tasks(
         .filter_map(|e| e.removal.as_ref())
         .map(|r| (r.predicted_cost, r.horizon))
         .collect();
+    let reinsertion_predictions = controller
+        .events()
+        .iter()
+        .filter(|e| e.kind == EventKind::Reinsert)
+        .filter_map(|e| e.reinsertion)
+        .map(|r| (r.predicted_cost, r.threshold))
+        .collect();
     Run {
         hit,
         removal_predictions,
+        reinsertion_predictions,
         events: controller
             .events()
             .iter()
@@ -247,6 +277,86 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
     assert!(run
         .hit
         .is_some_and(|(joint, k)| joint == 0 && k > last_back));
+    assert_continuous_at_events(&run, 0.01);
+}
+
+/// A guard that keeps joint 0 above 0.85 (`g = max(0, 0.85 − q_0)²`), inside the upper activation band of the
+/// limits (0.8 to 1): the stand-in for the visibility of the target.
+struct FloorOnJointZero;
+
+impl FloorOnJointZero {
+    const FLOOR: f64 = 0.85;
+}
+
+impl Cost<3> for FloorOnJointZero {
+    fn value(&self, q: &JointVector<3>) -> Result<f64, CostError> {
+        Ok((Self::FLOOR - q[0]).max(0.0).powi(2))
+    }
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<3>,
+        gradient: &mut JointVector<3>,
+    ) -> Result<f64, CostError> {
+        gradient.fill(0.0);
+        gradient[0] = -2.0 * (Self::FLOOR - q[0]).max(0.0);
+        self.value(q)
+    }
+}
+
+/// D7 guard relief, on the unachievable task: once "reach" is out, the avoidance gradient takes joint 0 down through
+/// the band, below the guard's floor. The guard's prediction rises, and "reach" (whose return lowers it) comes back
+/// at once — while the robot still moves, without waiting for it to settle, before any fallback — judged on the
+/// guard: its prediction with the task back below the one without (here from about 10⁻⁹: any rise). The same run
+/// without the guard has no re-insertion at all (previous test). Each removal still counts: the task leaves at most
+/// `max_removals` times.
+#[test]
+fn a_task_comes_back_when_its_absence_is_predicted_to_raise_the_guard() {
+    let parameters = ControllerParameters::default();
+    let run = run_guarded(
+        tasks(),
+        JointVector::<3>::new(0.2, -0.2, 0.1),
+        parameters,
+        1.0,
+        Some(&FloorOnJointZero),
+        4000,
+    );
+    let removal = run
+        .events
+        .iter()
+        .find(|e| e.1 == EventKind::Remove)
+        .copied()
+        .expect("a removal");
+    assert_eq!(removal.2, 1, "events: {:?}", run.events);
+    let relief = run
+        .events
+        .iter()
+        .find(|e| e.1 == EventKind::Reinsert)
+        .copied()
+        .expect("a re-insertion by the guard");
+    assert_eq!(relief.2, 1);
+    assert!(relief.0 > removal.0);
+    // The robot is still moving: a settled re-insertion (D7) would wait for ‖q̇_n‖ < settle_velocity.
+    let moving = run.sent[relief.0 - 1].norm();
+    assert!(moving > 10.0 * parameters.settle_velocity, "‖q̇‖ = {moving}");
+    assert!(!run
+        .events
+        .iter()
+        .any(|e| e.1 == EventKind::Fallback && e.0 < relief.0));
+    let (with_task, without_task) = run.reinsertion_predictions[0];
+    assert!(
+        without_task > 0.0 && with_task < without_task,
+        "guard predicted {with_task} with the task, {without_task} without"
+    );
+    let removals = run
+        .events
+        .iter()
+        .filter(|e| e.1 == EventKind::Remove)
+        .count();
+    assert!(
+        removals <= parameters.max_removals as usize,
+        "events: {:?}",
+        run.events
+    );
     assert_continuous_at_events(&run, 0.01);
 }
 
