@@ -1108,29 +1108,13 @@ impl<const N: usize> StackController<N> {
         now: &ControllerStep<N>,
         time: f64,
     ) -> Result<Option<(usize, f64)>, ControllerError> {
-        if self.removed.is_empty()
-            || self.parameters.rule != DecisionRule::Robust
-            || self.fallback
-            || now.predicted_cost <= now.cost
-            || time - self.last_change_time
-                < self.parameters.change_transitions / law.transition_gain()
-        {
+        if !self.may_relieve(law, time) || self.fallback || now.predicted_cost <= now.cost {
             return Ok(None);
         }
         let threshold = self.parameters.reinsertion_ratio * self.removal_threshold(cost);
-        for rank in 0..self.removed.len() {
-            let task = self.removed[rank];
-            if time - self.removed_at[task] < self.dwell(task) {
-                continue;
-            }
-            self.set_trial_stack(Some(task), None);
-            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
-            let predicted_back = self.predicted_value(cost, &back)?;
-            if predicted_back < now.predicted_cost && predicted_back <= threshold {
-                return Ok(Some((task, predicted_back)));
-            }
-        }
-        Ok(None)
+        self.first_task_back(law, tasks, cost, prediction, horizon, Some(time), |back| {
+            back < now.predicted_cost && back <= threshold
+        })
     }
 
     /// D7 guard relief: while the `guard` cost (the visibility of the target, in the simulation) is predicted to rise
@@ -1150,11 +1134,7 @@ impl<const N: usize> StackController<N> {
         horizon: f64,
         time: f64,
     ) -> Result<Option<(usize, f64, f64)>, ControllerError> {
-        if self.removed.is_empty()
-            || self.parameters.rule != DecisionRule::Robust
-            || time - self.last_change_time
-                < self.parameters.change_transitions / law.transition_gain()
-        {
+        if !self.may_relieve(law, time) {
             return Ok(None);
         }
         let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
@@ -1163,13 +1143,44 @@ impl<const N: usize> StackController<N> {
         if without <= now.max(0.0) {
             return Ok(None);
         }
+        let found = self.first_task_back(law, tasks, guard, prediction, far, None, |back| {
+            back < without
+        })?;
+        Ok(found.map(|(task, back)| (task, back, without)))
+    }
+
+    /// Whether a relief (D7) may be considered: a task is out, robust rule, the last change at least `n_change/μ` old.
+    fn may_relieve(&self, law: &ControlLaw, time: f64) -> bool {
+        !self.removed.is_empty()
+            && self.parameters.rule == DecisionRule::Robust
+            && time - self.last_change_time
+                >= self.parameters.change_transitions / law.transition_gain()
+    }
+
+    /// The first removed task by priority whose return `accept`s the value of `cost` predicted `horizon` ahead along
+    /// the law of the stack with it back, with that value. With `dwell_at = Some(t)`, tasks still within their dwell
+    /// at time `t` are passed over.
+    #[allow(clippy::too_many_arguments)]
+    fn first_task_back(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: &dyn Cost<N>,
+        prediction: &Prediction<'_, N>,
+        horizon: f64,
+        dwell_at: Option<f64>,
+        accept: impl Fn(f64) -> bool,
+    ) -> Result<Option<(usize, f64)>, ControllerError> {
         for rank in 0..self.removed.len() {
             let task = self.removed[rank];
+            if dwell_at.is_some_and(|time| time - self.removed_at[task] < self.dwell(task)) {
+                continue;
+            }
             self.set_trial_stack(Some(task), None);
-            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, far);
-            let predicted_back = self.predicted_value(guard, &back)?;
-            if predicted_back < without {
-                return Ok(Some((task, predicted_back, without)));
+            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let predicted_back = self.predicted_value(cost, &back)?;
+            if accept(predicted_back) {
+                return Ok(Some((task, predicted_back)));
             }
         }
         Ok(None)
