@@ -437,9 +437,11 @@ pub struct RemovalReport {
 /// Why a removed task came back.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ReinsertionReport {
-    /// The cost predicted with the task back, `h(q̂)` over the re-insertion horizon.
+    /// The cost predicted with the task back, `h(q̂)` over the re-insertion horizon (for a guard relief, D7: the
+    /// guard's prediction `g(q̂)` one transition time ahead).
     pub predicted_cost: f64,
-    /// The re-insertion threshold `r_back · h_max` it was compared with.
+    /// What it was compared with: the re-insertion threshold `r_back · h_max` (for a guard relief: the guard's
+    /// prediction without the task, which the return must lower).
     pub threshold: f64,
     /// How long the task was out (s).
     pub removed_for: f64,
