@@ -251,9 +251,14 @@ struct SmallFullRowRank<const N: usize> {
     /// `det G = λ₊ λ₋` (for one row, `p²`: unused).
     det: f64,
     sigma_min: f64,
-    /// `κ(G) = λ₊/λ₋ = κ(A)²`.
-    gram_condition: f64,
+    /// When `κ(G) = λ₊/λ₋ = κ(A)²` exceeds [`GRAM_ACCURATE_CONDITION`] (the products through `G⁻¹` would lose more
+    /// than `10⁻¹²`): the rows' orthonormal basis and triangular factor ([`Self::orthonormal_rows`]), computed once
+    /// for the products below.
+    orthonormal: Option<OrthonormalRows<N>>,
 }
+
+/// `A = R Qᵀ`: the orthonormal rows `[q0, q1]` and the lower-triangular `R = [ρ00 0; ρ01 ρ11]` as `[ρ00, ρ01, ρ11]`.
+type OrthonormalRows<const N: usize> = ([JointVector<N>; 2], [f64; 3]);
 
 impl<const N: usize> SmallFullRowRank<N> {
     fn certify<R, S>(
@@ -288,7 +293,9 @@ impl<const N: usize> SmallFullRowRank<N> {
             && sigma_min.is_finite()
             && sigma_min * SMALL_PATH_CONDITION_BOUND >= sigma_max
             && sigma_min > 2.0 * policy.threshold(sigma_max.max(reference_scale));
-        certified.then_some(Self {
+        certified.then(|| Self {
+            orthonormal: (largest / smallest > GRAM_ACCURATE_CONDITION)
+                .then(|| Self::orthonormal_rows(&rows)),
             rows,
             count: a.nrows(),
             p,
@@ -296,7 +303,6 @@ impl<const N: usize> SmallFullRowRank<N> {
             c,
             // det G = λ₊ λ₋: accurate where p c − b² may cancel.
             det: largest * smallest,
-            gram_condition: largest / smallest,
             sigma_min,
         })
     }
@@ -312,19 +318,12 @@ impl<const N: usize> SmallFullRowRank<N> {
         }
     }
 
-    /// Whether the products through `G⁻¹` are accurate enough: their error, about `κ(G) ε` (measured: 1.5·10⁻¹² on the
-    /// step and 1.1·10⁻¹² on the projector near `κ(G) = 10⁴`), stays under `10⁻¹²` with a factor 4 of margin.
-    /// Otherwise the rows are orthonormalised first ([`Self::orthonormal_rows`]).
-    fn gram_is_accurate(&self) -> bool {
-        self.gram_condition <= GRAM_ACCURATE_CONDITION
-    }
-
     /// The rows' orthonormal basis and triangular factor, `A = R Qᵀ` with `Q = [q0 q1]` (`N × 2`) and
     /// `R = [ρ00 0; ρ01 ρ11]`, by Gram–Schmidt applied twice (the second pass restores the orthogonality the first
     /// loses to cancellation when the rows are nearly dependent): the products below are then accurate to `κ(A) ε`,
     /// as the SVD's, instead of `κ(A)² ε`. Two rows only (one row never needs it: `κ(G) = 1`).
-    fn orthonormal_rows(&self) -> ([JointVector<N>; 2], [f64; 3]) {
-        let [r0, r1] = &self.rows;
+    fn orthonormal_rows(rows: &[JointVector<N>; 2]) -> OrthonormalRows<N> {
+        let [r0, r1] = rows;
         let rho00 = r0.norm();
         let q0 = r0 / rho00;
         let first = q0.dot(r1);
@@ -341,8 +340,7 @@ impl<const N: usize> SmallFullRowRank<N> {
         R: Dim,
         SE: RawStorage<f64, R>,
     {
-        if !self.gram_is_accurate() {
-            let ([q0, q1], [rho00, rho01, rho11]) = self.orthonormal_rows();
+        if let Some(([q0, q1], [rho00, rho01, rho11])) = &self.orthonormal {
             // R z = e, forward: row 0 of A is ρ00 q0ᵀ, row 1 is ρ01 q0ᵀ + ρ11 q1ᵀ.
             let z0 = e[0] / rho00;
             let z1 = (e[1] - rho01 * z0) / rho11;
@@ -355,8 +353,7 @@ impl<const N: usize> SmallFullRowRank<N> {
 
     /// `‖A⁺A g‖ = √((A g)ᵀ G⁻¹ (A g))`, the norm of the component of `g` in the row space of `A`.
     fn row_space_component_norm(&self, g: &JointVector<N>) -> f64 {
-        if !self.gram_is_accurate() {
-            let ([q0, q1], _) = self.orthonormal_rows();
+        if let Some(([q0, q1], _)) = &self.orthonormal {
             return q0.dot(g).hypot(q1.dot(g));
         }
         let (w0, w1) = (self.rows[0].dot(g), self.rows[1].dot(g));
@@ -368,8 +365,8 @@ impl<const N: usize> SmallFullRowRank<N> {
     /// the SVD path's re-symmetrised update.
     fn subtract_row_space_projector(&self, projector: &mut JointMatrix<N>) {
         // Aᵀ G⁻¹ A = α r0 r0ᵀ + β (r0 r1ᵀ + r1 r0ᵀ) + γ r1 r1ᵀ, or q0 q0ᵀ + q1 q1ᵀ on the orthonormal rows.
-        let ([r0, r1], (alpha, beta, gamma)) = if !self.gram_is_accurate() {
-            (self.orthonormal_rows().0, (1.0, 0.0, 1.0))
+        let ([r0, r1], (alpha, beta, gamma)) = if let Some((q, _)) = &self.orthonormal {
+            (*q, (1.0, 0.0, 1.0))
         } else {
             let coefficients = match self.count {
                 1 => (1.0 / self.p, 0.0, 0.0),
