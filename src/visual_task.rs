@@ -166,10 +166,23 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
             });
         }
         let (error, jacobian, interaction) = out.sensor_parts_mut();
-        // e = s − s*, angles wrapped (F28, D8). `s` is checked finite by `Feature::value`, `s*` at construction.
-        self.feature
-            .value(context.observation, error.as_mut_slice())
-            .map_err(|e| feature_error(&self.name, e))?;
+        // s and L_s (one pass over their shared terms, unless L_s is the constant one of the desired pose), both
+        // checked finite by the feature.
+        let evaluated = match &self.desired_interaction {
+            Some(desired) => {
+                interaction.copy_from(desired);
+                self.feature
+                    .value(context.observation, error.as_mut_slice())
+            }
+            None => self.feature.value_and_interaction(
+                context.observation,
+                self.source,
+                error.as_mut_slice(),
+                interaction.rows_mut(0, rows),
+            ),
+        };
+        evaluated.map_err(|e| feature_error(&self.name, e))?;
+        // e = s − s*, angles wrapped (F28, D8); `s*` was checked finite at construction.
         for ((e, s_star), &angle) in error
             .iter_mut()
             .zip(self.desired.iter())
@@ -181,17 +194,6 @@ impl<'a, const N: usize> Task<N, VisualContext<'a, N>> for VisualTask {
             } else {
                 difference
             };
-        }
-        match &self.desired_interaction {
-            Some(desired) => interaction.copy_from(desired),
-            None => self
-                .feature
-                .interaction(
-                    context.observation,
-                    self.source,
-                    interaction.rows_mut(0, rows),
-                )
-                .map_err(|e| feature_error(&self.name, e))?,
         }
         // J = L (cVe eJe)   [M42]
         crate::linalg::mul_rows_to(&*interaction, context.camera_jacobian, jacobian);

@@ -45,8 +45,13 @@ impl DiagonalAngle {
         (self.from, self.to)
     }
 
-    /// `(α, l, x_c, y_c, ζ_a, ζ_b)` of the segment.
-    fn segment(&self, obs: &Observation<'_>) -> Result<[f64; 6], FeatureError> {
+    /// `α` and its interaction row in the form `source` asks for (the struct's documentation), with
+    /// `sin α = Δy/l`, `cos α = Δx/l` read off the segment.
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+    ) -> Result<(f64, InteractionRow), FeatureError> {
         let too_few = || FeatureError::TooFewPoints {
             feature: self.name(),
             needed: self.min_points(),
@@ -55,7 +60,13 @@ impl DiagonalAngle {
         let a = obs.points().get(self.from).ok_or_else(too_few)?;
         let b = obs.points().get(self.to).ok_or_else(too_few)?;
         let (dx, dy) = (b.x - a.x, b.y - a.y);
-        let length = dx.hypot(dy);
+        // `hypot` (slow, overflow-safe) only where the plain sum of squares leaves the normal range.
+        let squared = dx * dx + dy * dy;
+        let length = if squared.is_normal() {
+            squared.sqrt()
+        } else {
+            dx.hypot(dy)
+        };
         let magnitude = a.x.abs() + a.y.abs() + b.x.abs() + b.y.abs();
         if length == 0.0 || length <= RELATIVE_TOLERANCE * magnitude {
             return Err(FeatureError::DegenerateSegment {
@@ -64,15 +75,20 @@ impl DiagonalAngle {
                 length,
             });
         }
-        let zeta = |k| obs.inverse_depth(k).ok_or_else(too_few);
-        Ok([
+        let (sin, cos) = (dy / length, dx / length);
+        let (xc, yc) = (0.5 * (a.x + b.x), 0.5 * (a.y + b.y));
+        let k = yc * cos - xc * sin;
+        let dz = match source {
+            InteractionSource::PaperApprox => 0.0,
+            InteractionSource::Exact | InteractionSource::Desired => {
+                let zeta = |k| obs.inverse_depth(k).ok_or_else(too_few);
+                (zeta(self.to)? - zeta(self.from)?) / length
+            }
+        };
+        Ok((
             dy.atan2(dx),
-            length,
-            0.5 * (a.x + b.x),
-            0.5 * (a.y + b.y),
-            zeta(self.from)?,
-            zeta(self.to)?,
-        ])
+            InteractionRow::new(dz * sin, -dz * cos, dz * k, sin * k, -cos * k, -1.0),
+        ))
     }
 }
 
@@ -90,7 +106,8 @@ impl Feature for DiagonalAngle {
         self.from.max(self.to).saturating_add(1)
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let [alpha, ..] = self.segment(obs)?;
+        // The value does not depend on the source; the approximate row skips the depth look-ups.
+        let (alpha, _) = self.evaluate(obs, InteractionSource::PaperApprox)?;
         super::write_values(s, &[alpha]);
         Ok(())
     }
@@ -100,24 +117,18 @@ impl Feature for DiagonalAngle {
         source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let [alpha, length, xc, yc, zeta_a, zeta_b] = self.segment(obs)?;
-        let (sin, cos) = alpha.sin_cos();
-        let k = yc * cos - xc * sin;
-        let dz = match source {
-            InteractionSource::PaperApprox => 0.0,
-            InteractionSource::Exact | InteractionSource::Desired => (zeta_b - zeta_a) / length,
-        };
-        super::write_rows(
-            l,
-            &[InteractionRow::new(
-                dz * sin,
-                -dz * cos,
-                dz * k,
-                sin * k,
-                -cos * k,
-                -1.0,
-            )],
-        );
+        let (_, row) = self.evaluate(obs, source)?;
+        super::write_rows(l, &[row]);
+        Ok(())
+    }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &[self.evaluate(obs, source)?]);
         Ok(())
     }
 }
@@ -131,6 +142,17 @@ impl Feature for DiagonalAngle {
 /// error is wrapped into `(−π, π]` only, so keep the target's main axis away from the image's y axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct MomentOrientation;
+
+impl MomentOrientation {
+    /// `(α, L_α)`.
+    fn evaluate(obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 1], FeatureError> {
+        let o = obs.moments()?.orientation_terms()?;
+        Ok([(
+            0.5 * o.s1.atan2(o.c1),
+            (o.l_s1 * o.c1 - o.l_c1 * o.s1) / (2.0 * o.i1),
+        )])
+    }
+}
 
 impl Feature for MomentOrientation {
     fn name(&self) -> &'static str {
@@ -146,8 +168,8 @@ impl Feature for MomentOrientation {
         2
     }
     fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let o = obs.moments()?.orientation_terms()?;
-        super::write_values(s, &[0.5 * o.s1.atan2(o.c1)]);
+        let [(alpha, _)] = Self::evaluate(obs)?;
+        super::write_values(s, &[alpha]);
         Ok(())
     }
     fn write_interaction(
@@ -156,8 +178,18 @@ impl Feature for MomentOrientation {
         _source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let o = obs.moments()?.orientation_terms()?;
-        super::write_rows(l, &[(o.l_s1 * o.c1 - o.l_c1 * o.s1) / (2.0 * o.i1)]);
+        let [(_, row)] = Self::evaluate(obs)?;
+        super::write_rows(l, &[row]);
+        Ok(())
+    }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &Self::evaluate(obs)?);
         Ok(())
     }
 }
@@ -245,6 +277,27 @@ mod tests {
         assert_relative_eq!(s[0], 0.3, epsilon = 1e-14);
         DiagonalAngle::default().value(&obs, &mut s).unwrap();
         assert_relative_eq!(s[0], h.atan2(w) + 0.3, epsilon = 1e-14);
+    }
+
+    #[test]
+    fn extreme_segment_lengths_keep_the_exact_row() {
+        // The segment's length leaves the range of a plain sum of squares (it overflows at 1e200 and underflows at
+        // 1e-170): the row must still be the formula's, sin α and cos α taken from atan2 here.
+        for scale in [1.0, 1e200, 1e-170] {
+            let (xa, ya, xb, yb) = (0.3 * scale, -0.1 * scale, -0.2 * scale, 0.4 * scale);
+            let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+            pts[0] = ImagePoint::new(xa, ya, 0.5);
+            pts[2] = ImagePoint::new(xb, yb, 0.5);
+            let obs = Observation::new(&pts, None).unwrap();
+            let mut l = crate::task::InteractionMatrix::zeros(1);
+            DiagonalAngle::default()
+                .interaction(&obs, InteractionSource::PaperApprox, l.rows_mut(0, 1))
+                .unwrap();
+            let (sin, cos) = (yb - ya).atan2(xb - xa).sin_cos();
+            let k = 0.5 * (ya + yb) * cos - 0.5 * (xa + xb) * sin;
+            assert_relative_eq!(l[(0, 3)], sin * k, max_relative = 1e-14);
+            assert_relative_eq!(l[(0, 4)], -cos * k, max_relative = 1e-14);
+        }
     }
 
     #[test]

@@ -136,6 +136,24 @@ impl AreaNormalized {
     pub fn new(normalization: AreaNormalization) -> Self {
         Self { normalization }
     }
+
+    /// `a_n` and its row in the form `source` asks for.
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+    ) -> Result<(f64, InteractionRow), FeatureError> {
+        let m = obs.moments()?;
+        let (a_n, l_an) = self.normalization.evaluate(m)?;
+        let row = match source {
+            InteractionSource::PaperApprox => {
+                let (eps1, eps2) = epsilons(m)?;
+                InteractionRow::new(0.0, 0.0, -1.0, -a_n * eps1, a_n * eps2, 0.0)
+            }
+            InteractionSource::Exact | InteractionSource::Desired => l_an,
+        };
+        Ok((a_n, row))
+    }
 }
 
 impl Feature for AreaNormalized {
@@ -162,16 +180,18 @@ impl Feature for AreaNormalized {
         source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let m = obs.moments()?;
-        let (a_n, l_an) = self.normalization.evaluate(m)?;
-        let row = match source {
-            InteractionSource::PaperApprox => {
-                let (eps1, eps2) = epsilons(m)?;
-                InteractionRow::new(0.0, 0.0, -1.0, -a_n * eps1, a_n * eps2, 0.0)
-            }
-            InteractionSource::Exact | InteractionSource::Desired => l_an,
-        };
+        let (_, row) = self.evaluate(obs, source)?;
         super::write_rows(l, &[row]);
+        Ok(())
+    }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &[self.evaluate(obs, source)?]);
         Ok(())
     }
 }

@@ -2,7 +2,7 @@
 
 use super::{
     point_interaction, positive_parameter, AreaNormalization, Feature, FeatureError,
-    InteractionRows, InteractionSource, Observation,
+    InteractionRow, InteractionRows, InteractionSource, Observation,
 };
 
 /// Task e1 of the paper: the centroid `s = (x_g, y_g)` of the image points, \[M30\] (F30).
@@ -86,6 +86,16 @@ impl NormalizedCentroid {
     pub fn new(normalization: AreaNormalization) -> Self {
         Self { normalization }
     }
+
+    /// `(x_n, L_{x_n})` and `(y_n, L_{y_n})`.
+    fn evaluate(&self, obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
+        let m = obs.moments()?;
+        let (a_n, l_an) = self.normalization.evaluate(m)?;
+        Ok([
+            (a_n * m.xg(), m.interaction_xg() * a_n + l_an * m.xg()),
+            (a_n * m.yg(), m.interaction_yg() * a_n + l_an * m.yg()),
+        ])
+    }
 }
 
 impl Feature for NormalizedCentroid {
@@ -113,15 +123,18 @@ impl Feature for NormalizedCentroid {
         _source: InteractionSource,
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError> {
-        let m = obs.moments()?;
-        let (a_n, l_an) = self.normalization.evaluate(m)?;
-        super::write_rows(
-            l,
-            &[
-                m.interaction_xg() * a_n + l_an * m.xg(),
-                m.interaction_yg() * a_n + l_an * m.yg(),
-            ],
-        );
+        let [(_, lx), (_, ly)] = self.evaluate(obs)?;
+        super::write_rows(l, &[lx, ly]);
+        Ok(())
+    }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &self.evaluate(obs)?);
         Ok(())
     }
 }

@@ -90,6 +90,16 @@ impl Feature for PaperInvariants {
         super::write_rows(l, &[lx, ly]);
         Ok(())
     }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &self.evaluate(obs)?);
+        Ok(())
+    }
 }
 
 /// ViSP's point-based invariants (`vpMomentCInvariant::Px()`, `Py()`, [peer scene variant B](crate::theory::peer_scene#variant-b), [theory §7.6](crate::theory#s7-6)):
@@ -145,6 +155,16 @@ impl Feature for VispInvariants {
     ) -> Result<(), FeatureError> {
         let [(_, lx), (_, ly)] = Self::evaluate(obs)?;
         super::write_rows(l, &[lx, ly]);
+        Ok(())
+    }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &Self::evaluate(obs)?);
         Ok(())
     }
 }

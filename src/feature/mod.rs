@@ -13,7 +13,9 @@
 //!    read the points only never pay for them).
 //! 2. Each [`Feature`] reads that observation and writes its value into a caller-provided `&mut [f64]`
 //!    ([`Feature::value`]) and its interaction matrix into caller-provided rows of an `OMatrix<f64, Dyn, U6>`
-//!    ([`Feature::interaction`], type [`InteractionRows`]). Nothing allocates on the heap in either call.
+//!    ([`Feature::interaction`], type [`InteractionRows`]), or both in one call ([`Feature::value_and_interaction`],
+//!    which a control step uses: the terms the value and the rows share are computed once). Nothing allocates on the
+//!    heap in any of these calls.
 //! 3. [`Feature::error`] gives `e = s − s*` (F28) with angle rows wrapped into `(−π, π]` ([`crate::math::wrap_angle`],
 //!    D8).
 //!
@@ -461,6 +463,24 @@ pub trait Feature {
         l: InteractionRows<'_>,
     ) -> Result<(), FeatureError>;
 
+    /// Writes `s` and `L_s` together (sizes checked by the caller). Unchecked entry point for implementors; call
+    /// [`Feature::value_and_interaction`]. The default calls [`Feature::write_value`] then
+    /// [`Feature::write_interaction`]; a feature whose value and rows share intermediate terms (a segment, `a_n`, the
+    /// second-order terms) overrides it to compute them once. It must write exactly what the two calls write.
+    ///
+    /// # Errors
+    /// As [`Feature::write_value`] and [`Feature::write_interaction`].
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        self.write_value(obs, s)?;
+        self.write_interaction(obs, source, l)
+    }
+
     /// Computes the feature value `s` into caller-provided storage of length [`Feature::dim`].
     ///
     /// # Errors
@@ -470,13 +490,7 @@ pub trait Feature {
         check_points(self, obs)?;
         check_dim(self, s.len())?;
         self.write_value(obs, s)?;
-        if s.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(FeatureError::NonFiniteResult {
-                feature: self.name(),
-            })
-        }
+        check_finite_value(self, s)
     }
 
     /// Computes the interaction matrix `L_s` into [`Feature::dim`] caller-provided rows (see [`InteractionRows`]),
@@ -494,16 +508,27 @@ pub trait Feature {
         check_points(self, obs)?;
         check_dim(self, l.nrows())?;
         self.write_interaction(obs, source, l.rows_mut(0, self.dim()))?;
-        // Column by column on contiguous slices: nalgebra's entry iterator over a strided view is slow.
-        if l.column_iter()
-            .all(|column| crate::math::all_finite_slice(column.as_slice()))
-        {
-            Ok(())
-        } else {
-            Err(FeatureError::NonFiniteResult {
-                feature: self.name(),
-            })
-        }
+        check_finite_rows(self, &l)
+    }
+
+    /// [`Feature::value`] and [`Feature::interaction`] in one call, with the same checks and the same results, the
+    /// shared terms computed once.
+    ///
+    /// # Errors
+    /// As [`Feature::value`] and [`Feature::interaction`].
+    fn value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        mut l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        check_points(self, obs)?;
+        check_dim(self, s.len())?;
+        check_dim(self, l.nrows())?;
+        self.write_value_and_interaction(obs, source, s, l.rows_mut(0, self.dim()))?;
+        check_finite_value(self, s)?;
+        check_finite_rows(self, &l)
     }
 
     /// The task error `e = s − s*` (F28) into `e`, with angle rows wrapped into `(−π, π]` (D8, as ViSP's
@@ -549,6 +574,32 @@ fn check_points<F: Feature + ?Sized>(
     Ok(())
 }
 
+fn check_finite_value<F: Feature + ?Sized>(feature: &F, s: &[f64]) -> Result<(), FeatureError> {
+    if crate::math::all_finite_slice(s) {
+        Ok(())
+    } else {
+        Err(FeatureError::NonFiniteResult {
+            feature: feature.name(),
+        })
+    }
+}
+
+fn check_finite_rows<F: Feature + ?Sized>(
+    feature: &F,
+    l: &InteractionRows<'_>,
+) -> Result<(), FeatureError> {
+    // Column by column on contiguous slices: nalgebra's entry iterator over a strided view is slow.
+    if l.column_iter()
+        .all(|column| crate::math::all_finite_slice(column.as_slice()))
+    {
+        Ok(())
+    } else {
+        Err(FeatureError::NonFiniteResult {
+            feature: feature.name(),
+        })
+    }
+}
+
 fn check_dim<F: Feature + ?Sized>(feature: &F, got: usize) -> Result<(), FeatureError> {
     if got != feature.dim() {
         return Err(FeatureError::WrongDimension {
@@ -580,6 +631,14 @@ fn write_rows(mut l: InteractionRows<'_>, rows: &[InteractionRow]) {
 fn write_values(s: &mut [f64], values: &[f64]) {
     for (dst, src) in s.iter_mut().zip(values) {
         *dst = *src;
+    }
+}
+
+/// Writes the values and the rows of `pairs` into `s` and `l` (sizes matched by the checked caller).
+fn write_pairs(s: &mut [f64], mut l: InteractionRows<'_>, pairs: &[(f64, InteractionRow)]) {
+    for ((dst, mut row), (value, src)) in s.iter_mut().zip(l.row_iter_mut()).zip(pairs) {
+        *dst = *value;
+        row.copy_from(src);
     }
 }
 
@@ -685,6 +744,60 @@ mod tests {
             prop_assert_eq!(with_plane.inverse_depth(4), None);
             let (a, b) = (with_plane.moments().unwrap(), with_depths.moments().unwrap());
             assert_relative_eq!(a.interaction_mu(2, 1).unwrap(), b.interaction_mu(2, 1).unwrap(), max_relative = 1e-10);
+        }
+
+        /// `value_and_interaction` gives, bit for bit, what `value` and `interaction` give apart (or the same error),
+        /// for every feature, source and depth model, on tilted views and on views where some features degenerate
+        /// (a square seen head-on: isotropic moments; points collapsed onto a segment).
+        #[test]
+        fn the_one_pass_evaluation_equals_the_two_calls(
+            pose in tilted_pose_strategy(),
+            plane in any::<bool>(),
+            shape in 0usize..3,
+        ) {
+            let normalization = AreaNormalization::new(0.6, 0.04).unwrap();
+            let features: Vec<BoxedFeature> = vec![
+                Box::new(Centroid::new(0.7).unwrap()),
+                Box::new(NormalizedCentroid::new(normalization)),
+                Box::new(DiagonalAngle::default()),
+                Box::new(DiagonalAngle::new(3, 1).unwrap()),
+                Box::new(MomentOrientation),
+                Box::new(CentredMoment::new(2, 1).unwrap()),
+                Box::new(AreaNormalized::new(normalization)),
+                Box::new(PaperInvariants::new(normalization)),
+                Box::new(VispInvariants),
+                Box::new(SideRatios),
+                Box::new(Point::new(2)),
+                Box::new(AllPoints::new(4).unwrap()),
+                Box::new(FeatureSet::paper_full(Centroid::new(0.7).unwrap(), DiagonalAngle::default(), normalization)),
+                Box::new(FeatureSet::visp_moments(normalization)),
+            ];
+            let object = match shape {
+                0 => rectangle(0.2, 0.14),
+                1 => rectangle(0.2, 0.2),
+                _ => rectangle(0.2, 0.0),
+            };
+            // The square is seen head-on (turned about the optical axis only).
+            let pose = if shape == 1 { testutil::pose(0.01, -0.02, 0.6, 0.0, 0.0, 0.3) } else { pose };
+            let scene = Scene::new(pose, object);
+            let (points, target_plane) = scene.image();
+            let observation = Observation::new(&points, plane.then_some(&target_plane)).unwrap();
+            for feature in &features {
+                for source in [InteractionSource::Exact, InteractionSource::PaperApprox, InteractionSource::Desired] {
+                    let rows = feature.dim();
+                    let (mut s_apart, mut l_apart) = (vec![0.0; rows], crate::task::InteractionMatrix::zeros(rows));
+                    let apart = feature
+                        .value(&observation, &mut s_apart)
+                        .and_then(|()| feature.interaction(&observation, source, l_apart.rows_mut(0, rows)));
+                    let (mut s_once, mut l_once) = (vec![0.0; rows], crate::task::InteractionMatrix::zeros(rows));
+                    let once = feature.value_and_interaction(&observation, source, &mut s_once, l_once.rows_mut(0, rows));
+                    prop_assert_eq!(&once, &apart, "{} with {:?}", feature.name(), source);
+                    if once.is_ok() {
+                        prop_assert_eq!(&s_once, &s_apart, "{}", feature.name());
+                        prop_assert_eq!(&l_once, &l_apart, "{} with {:?}", feature.name(), source);
+                    }
+                }
+            }
         }
 
         /// Errors of angle rows land in (−π, π] and equal s − s* modulo 2π.

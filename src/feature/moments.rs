@@ -9,6 +9,9 @@ const MAX_ORDER: usize = 3;
 /// Number of moments `μ_ij` with `i + j ≤ MAX_ORDER`.
 const MOMENT_COUNT: usize = (MAX_ORDER + 1) * (MAX_ORDER + 2) / 2;
 
+/// Number of moments `μ_ij` with `i + j < MAX_ORDER`: those whose point sums enter the rows of the next order.
+const LOWER_COUNT: usize = MAX_ORDER * (MAX_ORDER + 1) / 2;
+
 /// Where `μ_ij` (`i + j ≤ MAX_ORDER`) is stored: by order `i + j`, then by `j` (`μ00, μ10, μ01, μ20, μ11, μ02, …`).
 /// The triangular storage keeps [`Moments`] small: it is moved into its observation's cache at every step.
 const fn packed(i: usize, j: usize) -> usize {
@@ -54,58 +57,64 @@ impl Moments {
         let inv_n = 1.0 / n as f64;
         let zero = InteractionRow::zeros();
         let (mut sx, mut sy, mut scale) = (0.0, 0.0, 0.0);
-        let (mut l_xg, mut l_yg) = (zero, zero);
         for p in points {
-            let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(p));
             sx += p.x;
             sy += p.y;
             scale += p.x * p.x + p.y * p.y;
-            l_xg += lx;
-            l_yg += ly;
         }
         let (xg, yg) = (sx * inv_n, sy * inv_n);
-        l_xg *= inv_n;
-        l_yg *= inv_n;
 
-        let mut mu = [[0.0; MAX_ORDER + 1]; MAX_ORDER + 1];
-        // sum_x[p][q] = Σ_k Δx^p Δy^q L_{x_k}, sum_y likewise with L_{y_k}, p + q ≤ 2.
-        let mut sum_x = [[zero; MAX_ORDER]; MAX_ORDER];
-        let mut sum_y = [[zero; MAX_ORDER]; MAX_ORDER];
+        // Per point, the weights Δx^i Δy^j of every moment in packed order (μ00, μ10, μ01, μ20, μ11, μ02, μ30, …);
+        // sum_x[packed(i, j)] = Σ_k Δx^i Δy^j L_{x_k} and sum_y likewise with L_{y_k}, for i + j ≤ 2
+        // (sum_x[0] = Σ_k L_{x_k}). Fixed-size packed arrays: the loops unroll and the sums stay in registers.
+        let mut mu = [0.0; MOMENT_COUNT];
+        let mut sum_x = [zero; LOWER_COUNT];
+        let mut sum_y = [zero; LOWER_COUNT];
         for p in points {
             let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(p));
             let (dx, dy) = (p.x - xg, p.y - yg);
-            let px = [1.0, dx, dx * dx, dx * dx * dx];
-            let py = [1.0, dy, dy * dy, dy * dy * dy];
-            for i in 0..=MAX_ORDER {
-                for j in 0..=MAX_ORDER - i {
-                    let w = px[i] * py[j];
-                    mu[i][j] += w;
-                    if i + j < MAX_ORDER {
-                        sum_x[i][j] += lx * w;
-                        sum_y[i][j] += ly * w;
-                    }
-                }
+            let (dx2, dy2) = (dx * dx, dy * dy);
+            let weights = [
+                1.0,
+                dx,
+                dy,
+                dx2,
+                dx * dy,
+                dy2,
+                dx2 * dx,
+                dx2 * dy,
+                dx * dy2,
+                dy2 * dy,
+            ];
+            for (m, w) in mu.iter_mut().zip(weights) {
+                *m += w;
+            }
+            for ((sx, sy), w) in sum_x.iter_mut().zip(sum_y.iter_mut()).zip(weights) {
+                *sx += lx * w;
+                *sy += ly * w;
             }
         }
+        let l_xg = sum_x[0] * inv_n;
+        let l_yg = sum_y[0] * inv_n;
         // Exact by definition; the sums above only carry rounding noise.
-        mu[0][0] = n as f64;
-        mu[1][0] = 0.0;
-        mu[0][1] = 0.0;
+        mu[packed(0, 0)] = n as f64;
+        mu[packed(1, 0)] = 0.0;
+        mu[packed(0, 1)] = 0.0;
 
-        let mut packed_mu = [0.0; MOMENT_COUNT];
         let mut l_mu = [zero; MOMENT_COUNT];
         for i in 0..=MAX_ORDER {
             for j in 0..=MAX_ORDER - i {
-                packed_mu[packed(i, j)] = mu[i][j];
                 if i + j < 2 {
                     continue; // μ_00, μ_10, μ_01 are constants.
                 }
                 let mut row = zero;
                 if i > 0 {
-                    row += (sum_x[i - 1][j] - l_xg * mu[i - 1][j]) * i as f64;
+                    let lower = packed(i - 1, j);
+                    row += (sum_x[lower] - l_xg * mu[lower]) * i as f64;
                 }
                 if j > 0 {
-                    row += (sum_y[i][j - 1] - l_yg * mu[i][j - 1]) * j as f64;
+                    let lower = packed(i, j - 1);
+                    row += (sum_y[lower] - l_yg * mu[lower]) * j as f64;
                 }
                 l_mu[packed(i, j)] = row;
             }
@@ -116,7 +125,7 @@ impl Moments {
             yg,
             l_xg,
             l_yg,
-            mu: packed_mu,
+            mu,
             l_mu,
             scale,
         }

@@ -134,6 +134,22 @@ impl Feature for FeatureSet {
         }
         Ok(())
     }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        mut l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        let (mut rest, mut first) = (s, 0);
+        for f in &self.features {
+            let (head, tail) = rest.split_at_mut(f.dim().min(rest.len()));
+            let rows = f.dim().min(l.nrows() - first.min(l.nrows()));
+            f.value_and_interaction(obs, source, head, l.rows_mut(first, rows))?;
+            (rest, first) = (tail, first + rows);
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

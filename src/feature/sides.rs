@@ -112,6 +112,16 @@ impl Feature for SideRatios {
         super::write_rows(l, &[lx, ly]);
         Ok(())
     }
+    fn write_value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        super::write_pairs(s, l, &Self::evaluate(obs)?);
+        Ok(())
+    }
 }
 
 #[cfg(test)]
