@@ -1,8 +1,7 @@
 //! Angle features: the paper's diagonal angle (task e2, \[M32\]–\[M33\], (F32), D8) and ViSP's moment orientation.
 
 use super::{
-    Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource, Observation,
-    RELATIVE_TOLERANCE,
+    Feature, FeatureError, InteractionRow, InteractionSource, Observation, RELATIVE_TOLERANCE,
 };
 
 /// Task e2 of the paper: the angle of the directed image segment from point `from` to point `to` (one diagonal of
@@ -51,7 +50,7 @@ impl DiagonalAngle {
         &self,
         obs: &Observation<'_>,
         source: InteractionSource,
-    ) -> Result<(f64, InteractionRow), FeatureError> {
+    ) -> Result<[(f64, InteractionRow); 1], FeatureError> {
         let too_few = || FeatureError::TooFewPoints {
             feature: self.name(),
             needed: self.min_points(),
@@ -85,10 +84,10 @@ impl DiagonalAngle {
                 (zeta(self.to)? - zeta(self.from)?) / length
             }
         };
-        Ok((
+        Ok([(
             dy.atan2(dx),
             InteractionRow::new(dz * sin, -dz * cos, dz * k, sin * k, -cos * k, -1.0),
-        ))
+        )])
     }
 }
 
@@ -105,32 +104,7 @@ impl Feature for DiagonalAngle {
     fn min_points(&self) -> usize {
         self.from.max(self.to).saturating_add(1)
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        // The value does not depend on the source; the approximate row skips the depth look-ups.
-        let (alpha, _) = self.evaluate(obs, InteractionSource::PaperApprox)?;
-        super::write_values(s, &[alpha]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let (_, row) = self.evaluate(obs, source)?;
-        super::write_rows(l, &[row]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &[self.evaluate(obs, source)?]);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 /// ViSP's moment orientation ([peer scene variant B](crate::theory::peer_scene#variant-b)): `s = α = ½ atan2(2 μ11, μ20 − μ02)` (rad, in `(−π/2, π/2]`),
@@ -144,8 +118,12 @@ impl Feature for DiagonalAngle {
 pub struct MomentOrientation;
 
 impl MomentOrientation {
-    /// `(α, L_α)`.
-    fn evaluate(obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 1], FeatureError> {
+    /// `(α, L_α)` (exact whatever the source).
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 1], FeatureError> {
         let o = obs.moments()?.orientation_terms()?;
         Ok([(
             0.5 * o.s1.atan2(o.c1),
@@ -167,31 +145,7 @@ impl Feature for MomentOrientation {
     fn min_points(&self) -> usize {
         2
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let [(alpha, _)] = Self::evaluate(obs)?;
-        super::write_values(s, &[alpha]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let [(_, row)] = Self::evaluate(obs)?;
-        super::write_rows(l, &[row]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &Self::evaluate(obs)?);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 #[cfg(test)]

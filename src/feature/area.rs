@@ -142,7 +142,7 @@ impl AreaNormalized {
         &self,
         obs: &Observation<'_>,
         source: InteractionSource,
-    ) -> Result<(f64, InteractionRow), FeatureError> {
+    ) -> Result<[(f64, InteractionRow); 1], FeatureError> {
         let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
         let row = match source {
@@ -152,7 +152,7 @@ impl AreaNormalized {
             }
             InteractionSource::Exact | InteractionSource::Desired => l_an,
         };
-        Ok((a_n, row))
+        Ok([(a_n, row)])
     }
 }
 
@@ -169,31 +169,7 @@ impl Feature for AreaNormalized {
     fn min_points(&self) -> usize {
         2
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let (a_n, _) = self.normalization.evaluate(obs.moments()?)?;
-        super::write_values(s, &[a_n]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let (_, row) = self.evaluate(obs, source)?;
-        super::write_rows(l, &[row]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &[self.evaluate(obs, source)?]);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 /// `(ε1, ε2)` of \[M38\]–\[M39\].

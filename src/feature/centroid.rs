@@ -87,8 +87,12 @@ impl NormalizedCentroid {
         Self { normalization }
     }
 
-    /// `(x_n, L_{x_n})` and `(y_n, L_{y_n})`.
-    fn evaluate(&self, obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
+    /// `(x_n, L_{x_n})` and `(y_n, L_{y_n})` (exact whatever the source).
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
         Ok([
@@ -111,32 +115,7 @@ impl Feature for NormalizedCentroid {
     fn min_points(&self) -> usize {
         2
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let m = obs.moments()?;
-        let (a_n, _) = self.normalization.evaluate(m)?;
-        super::write_values(s, &[a_n * m.xg(), a_n * m.yg()]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let [(_, lx), (_, ly)] = self.evaluate(obs)?;
-        super::write_rows(l, &[lx, ly]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &self.evaluate(obs)?);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 #[cfg(test)]

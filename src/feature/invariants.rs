@@ -2,8 +2,7 @@
 
 use super::moments::Orientation;
 use super::{
-    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource,
-    Observation,
+    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionSource, Observation,
 };
 
 /// Task e4 of the paper: `s = (P_x, P_y)` \[M40\] (F36), 2 rows (`ωx` against `υy`, `ωy` against `υx`):
@@ -28,8 +27,12 @@ impl PaperInvariants {
         Self { normalization }
     }
 
-    /// `(P_x, P_y, L_{P_x}, L_{P_y})`.
-    fn evaluate(&self, obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
+    /// `(P_x, L_{P_x})` and `(P_y, L_{P_y})` (exact whatever the source).
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         let m = obs.moments()?;
         let Orientation {
             c1,
@@ -75,31 +78,7 @@ impl Feature for PaperInvariants {
     fn min_points(&self) -> usize {
         2
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let [(px, _), (py, _)] = self.evaluate(obs)?;
-        super::write_values(s, &[px, py]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let [(_, lx), (_, ly)] = self.evaluate(obs)?;
-        super::write_rows(l, &[lx, ly]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &self.evaluate(obs)?);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 /// ViSP's point-based invariants (`vpMomentCInvariant::Px()`, `Py()`, [peer scene variant B](crate::theory::peer_scene#variant-b), [theory §7.6](crate::theory#s7-6)):
@@ -113,8 +92,12 @@ impl Feature for PaperInvariants {
 pub struct VispInvariants;
 
 impl VispInvariants {
-    /// `(P_x, P_y, L_{P_x}, L_{P_y})`.
-    fn evaluate(obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
+    /// `(P_x, L_{P_x})` and `(P_y, L_{P_y})` (exact whatever the source).
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         let m = obs.moments()?;
         let o = m.second_order_terms()?;
         let (c2, s2, l_c2, l_s2) = m.third_order_terms();
@@ -142,31 +125,7 @@ impl Feature for VispInvariants {
     fn min_points(&self) -> usize {
         2
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let [(px, _), (py, _)] = Self::evaluate(obs)?;
-        super::write_values(s, &[px, py]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let [(_, lx), (_, ly)] = Self::evaluate(obs)?;
-        super::write_rows(l, &[lx, ly]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &Self::evaluate(obs)?);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 #[cfg(test)]

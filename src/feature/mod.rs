@@ -79,6 +79,45 @@
 //! # Ok::<(), servostack::feature::FeatureError>(())
 //! ```
 
+/// The three `write_*` methods of [`Feature`] for a feature of `K` rows whose values and interaction rows come out of
+/// one evaluation, `$evaluate(&self, &Observation, InteractionSource) -> Result<[(f64, InteractionRow); K],
+/// FeatureError>`: [`Feature::write_value`] keeps the values (of the exact form; the value does not depend on the
+/// source), [`Feature::write_interaction`] the rows, and [`Feature::write_value_and_interaction`] writes both from one
+/// evaluation.
+macro_rules! writes_from_one_evaluation {
+    ($evaluate:path) => {
+        fn write_value(
+            &self,
+            obs: &super::Observation<'_>,
+            s: &mut [f64],
+        ) -> Result<(), super::FeatureError> {
+            let pairs = $evaluate(self, obs, super::InteractionSource::Exact)?;
+            super::write_values(s, &pairs.map(|(value, _)| value));
+            Ok(())
+        }
+        fn write_interaction(
+            &self,
+            obs: &super::Observation<'_>,
+            source: super::InteractionSource,
+            l: super::InteractionRows<'_>,
+        ) -> Result<(), super::FeatureError> {
+            let pairs = $evaluate(self, obs, source)?;
+            super::write_rows(l, &pairs.map(|(_, row)| row));
+            Ok(())
+        }
+        fn write_value_and_interaction(
+            &self,
+            obs: &super::Observation<'_>,
+            source: super::InteractionSource,
+            s: &mut [f64],
+            l: super::InteractionRows<'_>,
+        ) -> Result<(), super::FeatureError> {
+            super::write_pairs(s, l, &$evaluate(self, obs, source)?);
+            Ok(())
+        }
+    };
+}
+
 mod angle;
 mod area;
 mod centroid;

@@ -2,9 +2,7 @@
 //! differences of opposite side lengths. The replacement of the paper's `P_x, P_y` (task e4) when the target is
 //! centrally symmetric, where `I1 → 0` makes `P_x, P_y` undefined ([D9](crate::theory#d9)).
 
-use super::{
-    Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource, Observation,
-};
+use super::{Feature, FeatureError, InteractionRow, InteractionSource, Observation};
 
 /// Task e4 for centrally symmetric (square) targets: `s = (r_x, r_y)`, 2 rows, for four points numbered around the
 /// target (P0 → P1 → P2 → P3, as [`crate::target::RectangleTarget`]):
@@ -63,7 +61,11 @@ impl SideRatios {
     }
 
     /// `[(r_x, L_{r_x}), (r_y, L_{r_y})]`.
-    fn evaluate(obs: &Observation<'_>) -> Result<[(f64, InteractionRow); 2], FeatureError> {
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        _source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         if obs.len() != 4 {
             return Err(FeatureError::PointCountMismatch {
                 feature: "side ratios",
@@ -97,31 +99,7 @@ impl Feature for SideRatios {
     fn min_points(&self) -> usize {
         4
     }
-    fn write_value(&self, obs: &Observation<'_>, s: &mut [f64]) -> Result<(), FeatureError> {
-        let [(rx, _), (ry, _)] = Self::evaluate(obs)?;
-        super::write_values(s, &[rx, ry]);
-        Ok(())
-    }
-    fn write_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        let [(_, lx), (_, ly)] = Self::evaluate(obs)?;
-        super::write_rows(l, &[lx, ly]);
-        Ok(())
-    }
-    fn write_value_and_interaction(
-        &self,
-        obs: &Observation<'_>,
-        _source: InteractionSource,
-        s: &mut [f64],
-        l: InteractionRows<'_>,
-    ) -> Result<(), FeatureError> {
-        super::write_pairs(s, l, &Self::evaluate(obs)?);
-        Ok(())
-    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 #[cfg(test)]
