@@ -987,7 +987,13 @@ impl<const N: usize> StackController<N> {
                 &predicted,
             )?;
             if let Some((task, predicted_cost_without)) = choice {
-                let dominant = cost.dominant_term(&predicted)?.to_owned();
+                // At the prediction a target point may be behind the camera (an infinite cost, D6): the cost is
+                // then named as a whole when it cannot name its term.
+                let dominant = match cost.dominant_term(&predicted) {
+                    Err(CostError::PointBehindCamera { .. }) => cost.name(),
+                    named => named?,
+                }
+                .to_owned();
                 self.stacked.retain(|&t| t != task);
                 let at = self.removed.partition_point(|&t| t < task);
                 self.removed.insert(at, task);

@@ -1,7 +1,7 @@
 //! The stack controller on synthetic joint-space tasks (theory §6, D3–D7): the task that drives a joint into its limit is
 //! the one removed, the limit is not hit, the task comes back, and the velocity is continuous at every event.
 
-use servostack::avoidance::{Cost, CostError, JointLimits};
+use servostack::avoidance::{CompositeCost, Cost, CostError, JointLimits};
 use servostack::controller::{
     ControllerError, ControllerParameters, DecisionRule, EventKind, RemovalCriterion,
     StackController,
@@ -358,6 +358,111 @@ fn a_task_comes_back_when_its_absence_is_predicted_to_raise_the_guard() {
         run.events
     );
     assert_continuous_at_events(&run, 0.01);
+}
+
+/// A stand-in for the visibility of the target that cannot be evaluated past `q_0 = 0.86`, inside the limit's band and
+/// short of where the joint-limit cost reaches `h_max`, as the projection of a target point behind the camera cannot:
+/// `CostError::PointBehindCamera` there, 0 elsewhere.
+struct BlindPastJointZero;
+
+impl Cost<3> for BlindPastJointZero {
+    fn value(&self, q: &JointVector<3>) -> Result<f64, CostError> {
+        if q[0] > 0.86 {
+            Err(CostError::PointBehindCamera {
+                point: 0,
+                depth: -0.1,
+            })
+        } else {
+            Ok(0.0)
+        }
+    }
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<3>,
+        gradient: &mut JointVector<3>,
+    ) -> Result<f64, CostError> {
+        gradient.fill(0.0);
+        self.value(q)
+    }
+    fn name(&self) -> &str {
+        "blind"
+    }
+}
+
+/// [`BlindPastJointZero`] added to the joint-limit cost by a cost of its own that, unlike [`CompositeCost`], cannot
+/// name its dominant term where a point is behind the camera: its `dominant_term` passes the error on.
+struct LimitsAndBlind(JointLimits<3>);
+
+impl Cost<3> for LimitsAndBlind {
+    fn value(&self, q: &JointVector<3>) -> Result<f64, CostError> {
+        Ok(self.0.value(q)? + BlindPastJointZero.value(q)?)
+    }
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<3>,
+        gradient: &mut JointVector<3>,
+    ) -> Result<f64, CostError> {
+        Ok(self.0.value_and_gradient(q, gradient)? + BlindPastJointZero.value(q)?)
+    }
+    fn name(&self) -> &str {
+        "limits and blind"
+    }
+    fn dominant_term(&self, q: &JointVector<3>) -> Result<&str, CostError> {
+        self.value(q)?;
+        Ok("limits")
+    }
+    fn default_removal_threshold(&self) -> Option<f64> {
+        Cost::default_removal_threshold(&self.0)
+    }
+}
+
+/// D6: a prediction that takes a target point behind the camera is an infinite cost, and the removal it triggers is
+/// made and reported instead of failing the step (the removal report evaluated the cost's terms at the prediction and
+/// passed their error on): with a [`CompositeCost`] the term named as the dominant one is the term that could not be
+/// evaluated there; with a cost that cannot name it, the cost itself.
+#[test]
+fn a_prediction_that_loses_the_target_removes_the_task_and_names_the_term() {
+    let composite = CompositeCost::new().with(limits()).with(BlindPastJointZero);
+    assert_eq!(removal_naming(&composite), "blind");
+    assert_eq!(
+        removal_naming(&LimitsAndBlind(limits())),
+        "limits and blind"
+    );
+}
+
+/// The three tasks from (0.2, −0.2, 0.1) under `cost` up to the first removal, which must be of "reach" on an
+/// infinite prediction; the name of the dominant cost its report gives.
+fn removal_naming(cost: &dyn Cost<3>) -> String {
+    let (tasks, mut values) = tasks_and_values();
+    let law = ControlLaw::with_default_transition(&values, 1.0).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    let (dt, mut q) = (0.01, JointVector::<3>::new(0.2, -0.2, 0.1));
+    // Up to the removal: the steps before it, and the step that makes it, succeed.
+    for iteration in 0..1000 {
+        evaluate(&tasks, &mut values, &q);
+        let step = controller
+            .step(
+                &law,
+                &values,
+                Some(cost),
+                &q,
+                iteration,
+                iteration as f64 * dt,
+            )
+            .unwrap_or_else(|e| panic!("iteration {iteration}: {e}"));
+        if step.event == Some(EventKind::Remove) {
+            break;
+        }
+        q += step.velocity * dt;
+    }
+    let removal = controller
+        .events()
+        .iter()
+        .find_map(|e| e.removal.as_ref().map(|r| (e.task, r)))
+        .expect("a removal");
+    assert_eq!(removal.0, 1, "events: {:?}", controller.events());
+    assert!(removal.1.predicted_cost.is_infinite());
+    removal.1.cost.clone()
 }
 
 /// The paper's literal rule on the same tasks: removal and re-insertion at the same threshold, no dwell — the task

@@ -116,13 +116,19 @@ impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
         "composite"
     }
 
-    /// The name of the term with the largest value at `q` (the first on ties; `"composite"` without terms).
+    /// The name of the term with the largest value at `q` (the first on ties; `"composite"` without terms). A term
+    /// that cannot be evaluated at `q` because a target point would be at or behind the camera
+    /// ([`CostError::PointBehindCamera`]) counts as infinite there, as the stack controller counts such a prediction:
+    /// it is named, not passed on as an error.
     fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
         let mut best: Option<(f64, &str)> = None;
         for term in &self.terms {
-            let value = term.value(q)?;
+            let (value, name) = match term.value(q) {
+                Err(CostError::PointBehindCamera { .. }) => (f64::INFINITY, term.name()),
+                value => (value?, term.dominant_term(q)?),
+            };
             if best.is_none_or(|(b, _)| value > b) {
-                best = Some((value, term.dominant_term(q)?));
+                best = Some((value, name));
             }
         }
         Ok(best.map_or("composite", |(_, name)| name))
