@@ -14,7 +14,10 @@
 //!    ```
 //!
 //!    The `(q̇ − u)` term carries the motion that the transition of D1 will still make, so a removal is judged on
-//!    where the robot will really go, not on a law it has not reached yet. The horizon may be a number of transitions
+//!    where the robot will really go, not on a law it has not reached yet. A stack **changed now** (a candidate
+//!    removal, re-insertion or swap, law `u'`) is predicted the same way from where its own transition starts: `q̇` is
+//!    then `q̇(τ⁻)`, the velocity sent at the previous period, not the one the current stack sends now (after a
+//!    singular push that one already carries a share of a huge law, and every candidate would inherit it). The horizon may be a number of transitions
 //!    (`n_look/μ`); by default it is `T_min` (see [`ControllerParameters::look_ahead_transitions`] for the measured
 //!    trade-off). A prediction that takes a target point behind the camera, or that the cost forbids
 //!    ([`Cost::forbids`]: a joint beyond its hard limit), counts as an infinite cost, whatever `h_max`.
@@ -549,23 +552,44 @@ pub struct StackController<const N: usize> {
     last_swap: Option<(usize, usize)>,
 }
 
-/// What the prediction of D6 needs: the configuration, the velocity sent, the gradient, the horizon and `μ`.
+/// What the prediction of D6 needs: the configuration, the velocity the current stack sends now and the one sent at
+/// the previous period (where a change made now starts its transition), the gradient and `μ`.
 struct Prediction<'a, const N: usize> {
     q: &'a JointVector<N>,
     sent: &'a JointVector<N>,
+    sent_before: &'a JointVector<N>,
     gradient: &'a JointVector<N>,
     transition_gain: f64,
     rule: DecisionRule,
 }
 
 impl<const N: usize> Prediction<'_, N> {
-    /// `q̂(T) = q + T u + (1 − e^{−μT})/μ (q̇ − u)` ([`DecisionRule::Robust`]) or `q + T u` ([`DecisionRule::Paper`]).
+    /// Where the current stack's law `u` takes the robot in `T`: `q̂(T) = q + T u + (1 − e^{−μT})/μ (q̇ − u)` with `q̇`
+    /// the velocity it sends now, still carrying its transition ([`DecisionRule::Robust`]), or `q + T u`
+    /// ([`DecisionRule::Paper`]).
     fn at(&self, law: &JointVector<N>, horizon: f64) -> JointVector<N> {
+        self.integrate(law, self.sent, horizon)
+    }
+
+    /// Where the law `u'` of a stack changed now takes the robot in `T`: the same integral, its transition starting
+    /// from `q̇(τ⁻)`, the velocity sent at the previous period (D1), not from the velocity the current stack would send
+    /// now. The two differ little, except after a singular push: the current stack's velocity then already carries a
+    /// share of its huge law, which every candidate change would otherwise inherit.
+    fn after_change(&self, law: &JointVector<N>, horizon: f64) -> JointVector<N> {
+        self.integrate(law, self.sent_before, horizon)
+    }
+
+    fn integrate(
+        &self,
+        law: &JointVector<N>,
+        start: &JointVector<N>,
+        horizon: f64,
+    ) -> JointVector<N> {
         let mut predicted = self.q + law * horizon;
         if self.rule == DecisionRule::Robust {
             let mu = self.transition_gain;
             let memory = -(-mu * horizon).exp_m1() / mu;
-            predicted.axpy(memory, self.sent, 1.0);
+            predicted.axpy(memory, start, 1.0);
             predicted.axpy(-memory, law, 1.0);
         }
         predicted
@@ -788,6 +812,7 @@ impl<const N: usize> StackController<N> {
             guard,
             q,
             &output,
+            &velocity_sent_before,
             iteration,
             time,
             &mut result,
@@ -898,6 +923,7 @@ impl<const N: usize> StackController<N> {
         guard: Option<&dyn Cost<N>>,
         q: &JointVector<N>,
         output: &ControlOutput<N>,
+        sent_before: &JointVector<N>,
         iteration: usize,
         time: f64,
         result: &mut ControllerStep<N>,
@@ -906,6 +932,7 @@ impl<const N: usize> StackController<N> {
         let prediction = Prediction {
             q,
             sent: output.velocity(),
+            sent_before,
             gradient: output.gradient(),
             transition_gain: law.transition_gain(),
             rule: self.parameters.rule,
@@ -1082,7 +1109,8 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(None, Some(task));
-            let without = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let without =
+                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_without = self.predicted_value(cost, &without)?;
             if !robust {
                 return Ok(Some((task, predicted_without)));
@@ -1185,7 +1213,8 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(Some(task), None);
-            let back = prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let back =
+                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_back = self.predicted_value(cost, &back)?;
             if accept(predicted_back) {
                 return Ok(Some((task, predicted_back)));
@@ -1301,8 +1330,8 @@ impl<const N: usize> StackController<N> {
                         }
                         _ => self.parameters.prediction_horizon,
                     };
-                    let back =
-                        prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                    let back = prediction
+                        .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
                     self.predicted_value(cost, &back)?
                 }
                 _ => 0.0,
@@ -1425,8 +1454,8 @@ impl<const N: usize> StackController<N> {
                 }
                 self.set_trial_stack(Some(back), Some(out));
                 let horizon = self.parameters.reinsertion_look_ahead / back_gain;
-                let swapped =
-                    prediction.at(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                let swapped = prediction
+                    .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
                 let predicted_cost = self.predicted_value(cost, &swapped)?;
                 if predicted_cost <= threshold {
                     return Ok(Some((back, out, predicted_cost)));

@@ -676,6 +676,67 @@ fn a_prediction_beyond_a_hard_limit_removes_the_task_whatever_the_threshold() {
     assert!(run.hit.is_none_or(|(_, k)| k >= kept_until));
 }
 
+/// D6 after a singular push: "lever" (`e = 10⁻³ q_0 + q_2 − 0.3`) is pushed below "hold" (`q_2 → 0`), which leaves it
+/// only joint 0 with a Jacobian of 10⁻³: its law asks about 300 rad/s of joint 0. The velocity sent ramps towards
+/// it through the transition of D1, and the prediction of the current stack is past joint 0's limit. Removing "lever"
+/// must be found to help: the stack without it, changed now, starts its transition from the velocity sent at the
+/// previous period — not from the one the current stack sends, which already carries a share of the 300 rad/s and
+/// would make every candidate's prediction as bad as the current one's (then nothing is removed and the joint reaches
+/// its limit within a few periods of the push).
+#[test]
+fn a_singular_push_is_undone_before_the_limit() {
+    let row = |entries: [f64; 3]| TaskJacobian::<3>::from_fn(1, |_, k| entries[k]);
+    let tasks = vec![
+        LinearTask::new("hold", row([0.0, 0.0, 1.0]), JointVector::zeros(), 1.0).unwrap(),
+        LinearTask::new(
+            "lever",
+            row([1e-3, 0.0, 1.0]),
+            JointVector::<3>::new(0.0, 0.0, 0.3),
+            1.0,
+        )
+        .unwrap(),
+    ];
+    let run = run_tasks(
+        tasks,
+        JointVector::<3>::new(0.2, -0.2, 0.05),
+        ControllerParameters::default(),
+        1.0,
+        4000,
+    );
+    let push = run
+        .events
+        .iter()
+        .find(|&&(_, kind, task)| kind == EventKind::Push && task == 1)
+        .map(|e| e.0)
+        .expect("lever pushed");
+    let removal = run
+        .events
+        .iter()
+        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
+        .map(|e| e.0)
+        .unwrap_or_else(|| {
+            panic!(
+                "lever never removed; events {:?}, hit {:?}",
+                run.events, run.hit
+            )
+        });
+    assert!(
+        removal <= push + 2,
+        "pushed at {push}, removed at {removal}"
+    );
+    let kept_until = run
+        .events
+        .iter()
+        .find(|e| e.1 == EventKind::Fallback)
+        .map_or(run.sent.len(), |e| e.0);
+    assert!(
+        run.hit.is_none_or(|(_, k)| k >= kept_until),
+        "events {:?}, hit {:?}",
+        run.events,
+        run.hit
+    );
+}
+
 /// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
 /// it is the only change of that iteration.
 #[test]
