@@ -40,7 +40,10 @@
 //!    **guard** cost (a removal must not make the guard's prediction worse: in the simulation, the visibility of the
 //!    target, so that removing the centroid cannot let the target leave the image) is removed. When no candidate
 //!    qualifies, nothing is removed: the controller then behaves as the stack with projected gradient, which is
-//!    what "never worse than stack + gradient" needs.
+//!    what "never worse than stack + gradient" needs. A part of the cost that the `h_max` test cannot see — a joint
+//!    whose cost alone at its limit, `ρ² Δq / 2`, is below `h_max` ([`Cost::forbids_unseen`]) — triggers a removal
+//!    as the last resort below does: when the prediction `max(T, 1/μ)` ahead is past its limit (the candidates are
+//!    compared on that prediction). Seen only `T` ahead, the removal came too late for the change to act.
 //! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`; for a push with no
 //!    task out, when removals are allowed, `ε_add` is [`ControllerParameters::settle_velocity_with_removal`], 0.1 by
 //!    default against the paper's 0.01, so that the next task is pushed before the higher ones have quite converged):
@@ -993,12 +996,18 @@ impl<const N: usize> StackController<N> {
             }
         }
         // After the fallback, only the last resort of D13: the law is about to cross a hard limit (or lose the target)
-        // within the time a removal needs to act, `max(T, n_resort/μ)`.
+        // within the time a removal needs to act, `max(T, n_resort/μ)`. Before it, the `h_max` test of D6, and the
+        // same hard-limit check for the parts of the cost that the `h_max` test cannot see (D6).
+        let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
         let (trigger, removal_horizon, reference) = if self.fallback {
-            let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
             let far_value = self.predicted_value(cost, &prediction.at(output.law(), far))?;
             let imminent = self.parameters.rule == DecisionRule::Robust && far_value.is_infinite();
             (imminent, far, f64::INFINITY)
+        } else if !danger_predicted
+            && self.parameters.rule == DecisionRule::Robust
+            && cost.forbids_unseen(&prediction.at(output.law(), far), threshold)
+        {
+            (true, far, f64::INFINITY)
         } else {
             (danger_predicted, horizon, result.predicted_cost)
         };

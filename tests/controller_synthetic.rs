@@ -810,3 +810,43 @@ fn a_failed_step_leaves_the_last_sent_velocity_in_place() {
     );
     assert_eq!(*controller.law_workspace().last_output().velocity(), sent);
 }
+
+/// D6, a joint the `h_max` test cannot see: with a threshold above the joint-limit cost at a limit (`½ (ρΔq)²/Δq =
+/// 0.01` on these joints), "reach" drives joint 0 fast towards a goal at 2, beyond its limit at 1. A removal decided
+/// when the crossing is predicted `T` ahead comes too late (the change needs about `1/μ` to act, and joint 0 crossed
+/// its limit five periods after such a removal); decided when it is predicted one transition ahead, as the last resort
+/// of D13 does, it keeps the limit until the fallback.
+#[test]
+fn a_joint_the_threshold_cannot_see_is_watched_one_transition_ahead() {
+    let row = |c: usize| TaskJacobian::<3>::from_fn(1, |_, k| if k == c { 1.0 } else { 0.0 });
+    let mut tasks = tasks();
+    tasks[1] = LinearTask::new("reach", row(0), JointVector::<3>::new(2.0, 0.0, 0.0), 1.0).unwrap();
+    let out_of_reach = ControllerParameters {
+        removal_threshold: Some(1.0),
+        ..Default::default()
+    };
+    let run = run_tasks(
+        tasks,
+        JointVector::<3>::new(0.2, -0.2, 0.1),
+        out_of_reach,
+        1.0,
+        4000,
+    );
+    let removal_at = run
+        .events
+        .iter()
+        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
+        .map(|e| e.0)
+        .expect("reach removed");
+    let kept_until = run
+        .events
+        .iter()
+        .find(|e| e.1 == EventKind::Fallback)
+        .map_or(run.sent.len(), |e| e.0);
+    assert!(
+        run.hit.is_none_or(|(_, k)| k >= kept_until),
+        "removed at {removal_at}; events {:?}, hit {:?}",
+        run.events,
+        run.hit
+    );
+}
