@@ -426,9 +426,10 @@ pub struct RemovalReport {
     pub threshold: f64,
     /// The predicted cost with the task removed (smaller than `predicted_cost` under [`DecisionRule::Robust`]).
     pub predicted_cost_without: f64,
-    /// The prediction horizon (s): `T`, or `max(T, n_resort/μ)` for the last resort of D13.
+    /// The prediction horizon (s): `T`, or `max(T, n_resort/μ)` for the last resort of D13 and for a joint the
+    /// threshold cannot see (D6, [`Cost::forbids_unseen`]).
     pub horizon: f64,
-    /// The joint with the largest component of the predicted gradient `∇h(q̂)` (0-based).
+    /// The joint with the largest component of the gradient `∇h(q̂)` predicted `T` ahead (0-based).
     pub joint: usize,
     /// The cost term that dominates the predicted cost `h(q̂)` ([`Cost::dominant_term`]: `"joint_limits"`,
     /// `"obstacles"`, `"visibility"`, ...).
