@@ -60,6 +60,31 @@ struct Run {
     mu: f64,
 }
 
+impl Run {
+    /// The iteration of the first event of `kind` for `task`.
+    fn first(&self, kind: EventKind, task: usize) -> Option<usize> {
+        self.events
+            .iter()
+            .find(|&&(_, k, t)| k == kind && t == task)
+            .map(|e| e.0)
+    }
+
+    /// No limit was hit before the first fallback (or in the whole run without one): the removals kept the limits.
+    fn assert_limits_kept_until_fallback(&self) {
+        let kept_until = self
+            .events
+            .iter()
+            .find(|e| e.1 == EventKind::Fallback)
+            .map_or(self.sent.len(), |e| e.0);
+        assert!(
+            self.hit.is_none_or(|(_, k)| k >= kept_until),
+            "events {:?}, hit {:?}",
+            self.events,
+            self.hit
+        );
+    }
+}
+
 /// Runs the three tasks from (0.2, −0.2, 0.1) with the joint-limit cost, 4000 iterations or until a limit is hit.
 fn run(parameters: ControllerParameters, kappa: f64) -> Run {
     run_tasks(
@@ -655,12 +680,7 @@ fn a_prediction_beyond_a_hard_limit_removes_the_task_whatever_the_threshold() {
         ..Default::default()
     };
     let run = run(out_of_reach, 1.0);
-    let removal_at = run
-        .events
-        .iter()
-        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
-        .map(|e| e.0)
-        .expect("reach removed");
+    let removal_at = run.first(EventKind::Remove, 1).expect("reach removed");
     assert!(
         run.hit.is_none_or(|(_, k)| k > removal_at),
         "events {:?}, hit {:?}",
@@ -668,12 +688,7 @@ fn a_prediction_beyond_a_hard_limit_removes_the_task_whatever_the_threshold() {
         run.hit
     );
     // The limit is kept until the fallback (as with a reachable threshold), not hit right after the removal.
-    let kept_until = run
-        .events
-        .iter()
-        .find(|e| e.1 == EventKind::Fallback)
-        .map_or(run.sent.len(), |e| e.0);
-    assert!(run.hit.is_none_or(|(_, k)| k >= kept_until));
+    run.assert_limits_kept_until_fallback();
 }
 
 /// D6 after a singular push: "lever" (`e = 10⁻³ q_0 + q_2 − 0.3`) is pushed below "hold" (`q_2 → 0`), which leaves it
@@ -703,38 +718,18 @@ fn a_singular_push_is_undone_before_the_limit() {
         1.0,
         4000,
     );
-    let push = run
-        .events
-        .iter()
-        .find(|&&(_, kind, task)| kind == EventKind::Push && task == 1)
-        .map(|e| e.0)
-        .expect("lever pushed");
-    let removal = run
-        .events
-        .iter()
-        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
-        .map(|e| e.0)
-        .unwrap_or_else(|| {
-            panic!(
-                "lever never removed; events {:?}, hit {:?}",
-                run.events, run.hit
-            )
-        });
+    let push = run.first(EventKind::Push, 1).expect("lever pushed");
+    let removal = run.first(EventKind::Remove, 1).unwrap_or_else(|| {
+        panic!(
+            "lever never removed; events {:?}, hit {:?}",
+            run.events, run.hit
+        )
+    });
     assert!(
         removal <= push + 2,
         "pushed at {push}, removed at {removal}"
     );
-    let kept_until = run
-        .events
-        .iter()
-        .find(|e| e.1 == EventKind::Fallback)
-        .map_or(run.sent.len(), |e| e.0);
-    assert!(
-        run.hit.is_none_or(|(_, k)| k >= kept_until),
-        "events {:?}, hit {:?}",
-        run.events,
-        run.hit
-    );
+    run.assert_limits_kept_until_fallback();
 }
 
 /// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
@@ -832,21 +827,6 @@ fn a_joint_the_threshold_cannot_see_is_watched_one_transition_ahead() {
         1.0,
         4000,
     );
-    let removal_at = run
-        .events
-        .iter()
-        .find(|&&(_, kind, task)| kind == EventKind::Remove && task == 1)
-        .map(|e| e.0)
-        .expect("reach removed");
-    let kept_until = run
-        .events
-        .iter()
-        .find(|e| e.1 == EventKind::Fallback)
-        .map_or(run.sent.len(), |e| e.0);
-    assert!(
-        run.hit.is_none_or(|(_, k)| k >= kept_until),
-        "removed at {removal_at}; events {:?}, hit {:?}",
-        run.events,
-        run.hit
-    );
+    assert!(run.first(EventKind::Remove, 1).is_some(), "reach removed");
+    run.assert_limits_kept_until_fallback();
 }
