@@ -207,9 +207,10 @@ pub struct ControllerParameters {
     /// default 1: `q + u/λ_i` is where the linearised law with the task back would take the robot). Its window,
     /// measured by the convergence-domain study (200 draws per family, seed 1, the four scenarios): 1 to 2 give the
     /// same uniform-start figures within 1–4 draws (2: Afma6 121, UR5e 70, 7-joint chain 19, square 124, the square's
-    /// median removals 2 instead of 4) and every other family unchanged; shorter look-aheads re-insert tasks that the
-    /// next removal takes out again — 0.5 costs the UR5e's goal-moved draws (162 / 171 of 200 at ±2 / ±4 cm), 0.25
-    /// gives a median of 10–11 removals per uniform run on the Afma6 and the square.
+    /// median removals 2 instead of 4; seeds 2 and 3 within 2 draws too) and every other family unchanged within a
+    /// draw; shorter look-aheads re-insert tasks that the next removal takes out again — 0.5 costs the UR5e's
+    /// goal-moved draws (162 / 171 of 200 at ±2 / ±4 cm), 0.25 gives a median of 10–11 removals per uniform run on
+    /// the Afma6 and the square.
     pub reinsertion_look_ahead: f64,
     /// `n_change`: no removal within `n_change / μ` of the last change (D6, one change per transition; default 1).
     pub change_transitions: f64,
