@@ -224,8 +224,8 @@ pub struct ControllerParameters {
     /// `T_stall` (s): a removed task still refused this long after its first refused re-insertion test is put back
     /// anyway, and removals stop except as a last resort (D13 fallback; default 5 s). Window (as for `T_dwell`):
     /// 2.5 s gives the same figures within 1 draw; 10 s costs the square marker's uniform starts (74 instead of 124:
-    /// with a task out that long the robot drifts until the square is seen head-on, where its third-order features
-    /// are undefined, or a joint reaches its limit).
+    /// with a task out that long the robot drifts until a feature of the view is undefined — 42 runs end
+    /// `image_degenerate` — or a joint reaches its limit, 69 runs).
     pub stall_timeout: f64,
     /// Whether tasks may be removed at all (`false`: push-only, as the paper's runs 2 and 3).
     pub allow_removal: bool,
