@@ -140,7 +140,12 @@ impl<const N: usize> JointLimits<N> {
 
     /// The first joint outside its hard limits `[q^min, q^max]` ([D11](crate::theory#d11)), or `None`.
     pub fn violated_joint(&self, q: &JointVector<N>) -> Option<usize> {
-        (0..N).find(|&i| !(self.lower[i] <= q[i] && q[i] <= self.upper[i]))
+        (0..N).find(|&i| self.is_outside(q, i))
+    }
+
+    /// Whether joint `joint` of `q` lies outside `[q^min, q^max]` (a NaN coordinate counts as outside).
+    fn is_outside(&self, q: &JointVector<N>, joint: usize) -> bool {
+        !(self.lower[joint] <= q[joint] && q[joint] <= self.upper[joint])
     }
 
     /// The configuration normalised per joint to `(q − q^min)/Δq`: 0 at the lower limit, 1 at the upper (the paper's
@@ -185,7 +190,7 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
         (0..N).any(|i| {
             self.limit_cost(i)
                 .is_some_and(|at_limit| at_limit < threshold)
-                && !(self.lower[i] <= q[i] && q[i] <= self.upper[i])
+                && self.is_outside(q, i)
         })
     }
 
