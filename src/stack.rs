@@ -44,8 +44,8 @@
 //! ```
 
 use crate::linalg::{
-    mul_rows_to, solve_full_column_rank, solve_small_stack_level, ColumnSvd, LinalgError,
-    RankPolicy, VelocityInverse, FAST_PATH_CONDITION_BOUND,
+    mul_rows_and_vector_to, solve_full_column_rank, solve_small_stack_level, ColumnSvd,
+    LinalgError, RankPolicy, VelocityInverse, FAST_PATH_CONDITION_BOUND,
 };
 use crate::math::{JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
@@ -288,15 +288,22 @@ pub fn solve_stack<'w, const N: usize>(
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
         // r = −λ_i e_i − J_i q̇_{i−1}
-        let mut r = residual.rows_mut(0, rows);
-        r.copy_from(task.error());
-        r *= -task.gain();
         // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0, read in place by the certified
-        // paths and copied only for the SVD), decomposed in place into W = J̃_i V.
+        // paths and copied only for the SVD), decomposed in place into W = J̃_i V. Both products with J_i come from
+        // one pass over its rows.
+        let mut r = residual.rows_mut(0, rows);
         let mut w = limited.rows_mut(0, rows);
         if level > 0 {
-            r.gemv(-1.0, task.jacobian(), &solution.velocity, 1.0);
-            mul_rows_to(task.jacobian(), &solution.projector, &mut w);
+            mul_rows_and_vector_to(
+                task.jacobian(),
+                &solution.projector,
+                &solution.velocity,
+                &mut w,
+                &mut r,
+            );
+            r.zip_apply(task.error(), |ri, ei| *ri = -task.gain() * ei - *ri);
+        } else {
+            r.zip_apply(task.error(), |ri, ei| *ri = -task.gain() * ei);
         }
         let limited_jacobian = if level == 0 {
             task.jacobian().rows(0, rows)

@@ -248,8 +248,10 @@ struct SmallFullRowRank<const N: usize> {
     p: f64,
     b: f64,
     c: f64,
-    /// `det G = λ₊ λ₋` (for one row, `p²`: unused).
-    det: f64,
+    /// `1/det G = 1/(p c − b²)` (for one row, `1/p`). Formed from the entries, not as `λ₊ λ₋`: no square root on the
+    /// level's dependency chain, and its relative error, about `κ(G) ε`, is that of `λ₋` (both are only used up to
+    /// `κ(G) ≈ 1100`, [`GRAM_ACCURATE_CONDITION`]).
+    inverse_det: f64,
     sigma_min: f64,
     /// When `κ(G) = λ₊/λ₋ = κ(A)²` exceeds [`GRAM_ACCURATE_CONDITION`] (the products through `G⁻¹` would lose more
     /// than `10⁻¹²`): the rows' orthonormal basis and triangular factor ([`Self::orthonormal_rows`]), computed once
@@ -301,8 +303,7 @@ impl<const N: usize> SmallFullRowRank<N> {
             p,
             b,
             c,
-            // det G = λ₊ λ₋: accurate where p c − b² may cancel.
-            det: largest * smallest,
+            inverse_det: 1.0 / if a.nrows() == 1 { p } else { p * c - b * b },
             sigma_min,
         })
     }
@@ -310,10 +311,10 @@ impl<const N: usize> SmallFullRowRank<N> {
     /// `G⁻¹ (u, v)` (`v` ignored for one row).
     fn inverse_gram(&self, u: f64, v: f64) -> (f64, f64) {
         match self.count {
-            1 => (u / self.p, 0.0),
+            1 => (u * self.inverse_det, 0.0),
             _ => (
-                (self.c * u - self.b * v) / self.det,
-                (self.p * v - self.b * u) / self.det,
+                (self.c * u - self.b * v) * self.inverse_det,
+                (self.p * v - self.b * u) * self.inverse_det,
             ),
         }
     }
@@ -368,9 +369,10 @@ impl<const N: usize> SmallFullRowRank<N> {
         let ([r0, r1], (alpha, beta, gamma)) = if let Some((q, _)) = &self.orthonormal {
             (*q, (1.0, 0.0, 1.0))
         } else {
+            let d = self.inverse_det;
             let coefficients = match self.count {
-                1 => (1.0 / self.p, 0.0, 0.0),
-                _ => (self.c / self.det, -self.b / self.det, self.p / self.det),
+                1 => (d, 0.0, 0.0),
+                _ => (self.c * d, -self.b * d, self.p * d),
             };
             (self.rows, coefficients)
         };

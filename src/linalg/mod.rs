@@ -204,12 +204,60 @@ pub(crate) fn mul_rows_to<const K: usize, const N: usize, R, SA, SO>(
     SO: StorageMut<f64, R, Const<N>>,
 {
     for i in 0..a.nrows().min(out.nrows()) {
-        let row: [f64; K] = std::array::from_fn(|k| a[(i, k)]);
-        for (j, column) in b.as_slice().chunks_exact(K).enumerate() {
-            out[(i, j)] = row
-                .iter()
-                .zip(column.iter())
-                .fold(0.0, |sum, (a, b)| sum + a * b);
-        }
+        mul_row_to(&row_array(a, i), b, out, i);
     }
+}
+
+/// [`mul_rows_to`] and, from the same copies of the rows, `a · v` for a vector `v` of `K` entries: `out = a · b`,
+/// `av_i = a_iᵀ v` (the product a stack level needs for its limited Jacobian `J P` and its residual `J q̇`).
+pub(crate) fn mul_rows_and_vector_to<const K: usize, const N: usize, R, SA, SO, SV>(
+    a: &Matrix<f64, R, Const<K>, SA>,
+    b: &nalgebra::SMatrix<f64, K, N>,
+    v: &nalgebra::SVector<f64, K>,
+    out: &mut Matrix<f64, R, Const<N>, SO>,
+    av: &mut Vector<f64, R, SV>,
+) where
+    R: Dim,
+    SA: RawStorage<f64, R, Const<K>>,
+    SO: StorageMut<f64, R, Const<N>>,
+    SV: StorageMut<f64, R>,
+{
+    for i in 0..a.nrows().min(out.nrows()).min(av.nrows()) {
+        let row = row_array(a, i);
+        mul_row_to(&row, b, out, i);
+        av[i] = dot_array(&row, v.as_slice());
+    }
+}
+
+/// Row `i` of `a`, copied to a fixed-size array.
+#[inline(always)]
+fn row_array<const K: usize, R: Dim, SA: RawStorage<f64, R, Const<K>>>(
+    a: &Matrix<f64, R, Const<K>, SA>,
+    i: usize,
+) -> [f64; K] {
+    std::array::from_fn(|k| a[(i, k)])
+}
+
+/// `out_ij = rowᵀ b_j` for every column `j` of `b`.
+#[inline(always)]
+fn mul_row_to<const K: usize, const N: usize, R, SO>(
+    row: &[f64; K],
+    b: &nalgebra::SMatrix<f64, K, N>,
+    out: &mut Matrix<f64, R, Const<N>, SO>,
+    i: usize,
+) where
+    R: Dim,
+    SO: StorageMut<f64, R, Const<N>>,
+{
+    for (j, column) in b.as_slice().chunks_exact(K).enumerate() {
+        out[(i, j)] = dot_array(row, column);
+    }
+}
+
+/// `Σ_k row_k c_k`, summed in the order of `k`.
+#[inline(always)]
+fn dot_array<const K: usize>(row: &[f64; K], column: &[f64]) -> f64 {
+    row.iter()
+        .zip(column.iter())
+        .fold(0.0, |sum, (a, b)| sum + a * b)
 }
