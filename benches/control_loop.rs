@@ -23,6 +23,7 @@ use servostack::avoidance::Cost;
 use servostack::controller::{ControllerParameters, StackController};
 use servostack::law::{control_step, ControlWorkspace, StackChange};
 use servostack::robot::KinematicsWorkspace;
+use servostack::sim::View;
 use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
 use servostack::task::{Task, TaskJacobian, TaskValue};
 use servostack::visual_task::VisualContext;
@@ -84,8 +85,14 @@ fn parts(c: &mut Criterion) {
             black_box(state.tip_jacobian()[(0, 0)])
         })
     });
+    let mut view = View::default();
     group.bench_function("observe", |b| {
-        b.iter(|| black_box(scene.observe(&mut kinematics, black_box(&q)).unwrap()))
+        b.iter(|| {
+            scene
+                .observe_into(&mut kinematics, black_box(&q), &mut view)
+                .unwrap();
+            black_box(view.points[0].x)
+        })
     });
     let view = scene.observe(&mut kinematics, &q).unwrap();
     group.bench_function("observation_moments", |b| {

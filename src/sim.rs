@@ -137,6 +137,19 @@ pub struct View<const N: usize> {
     pub c_from_o: Isometry3<f64>,
 }
 
+impl<const N: usize> Default for View<N> {
+    /// A placeholder for [`Scene::observe_into`] to fill: every point at the origin of the image plane with zero
+    /// depth, the plane `1/Z = 0`, a zero Jacobian, the identity pose.
+    fn default() -> Self {
+        Self {
+            points: [ImagePoint::default(); 4],
+            plane: TargetPlane::default(),
+            camera_jacobian: KinematicJacobian::zeros(),
+            c_from_o: Isometry3::identity(),
+        }
+    }
+}
+
 impl<const N: usize> View<N> {
     /// The observation of the four points with the plane model, for the features.
     ///
@@ -262,7 +275,9 @@ impl<const N: usize> Scene<N> {
         })
     }
 
-    /// What the camera sees at configuration `q`: points, plane, camera Jacobian. Allocation-free.
+    /// What the camera sees at configuration `q`: points, plane, camera Jacobian. Allocation-free. A control loop
+    /// calls [`Self::observe_into`] instead, which writes into a view it keeps (a view is about half a kilobyte, and
+    /// each move of the returned value copies it).
     ///
     /// # Errors
     /// Non-finite `q`, a point at or behind the camera, a plane through the optical centre.
@@ -271,12 +286,34 @@ impl<const N: usize> Scene<N> {
         workspace: &mut KinematicsWorkspace<N>,
         q: &JointVector<N>,
     ) -> Result<View<N>, SimError> {
+        let mut view = View::default();
+        self.observe_into(workspace, q, &mut view)?;
+        Ok(view)
+    }
+
+    /// [`Self::observe`], written into `view` in place. After an error the content of `view` is unspecified.
+    ///
+    /// # Errors
+    /// As [`Self::observe`].
+    pub fn observe_into(
+        &self,
+        workspace: &mut KinematicsWorkspace<N>,
+        q: &JointVector<N>,
+        view: &mut View<N>,
+    ) -> Result<(), SimError> {
         let state = self.chain.kinematics(workspace, q)?;
         let base_from_camera = self.camera.base_from_camera(state.base_from_tip());
         let c_from_o = base_from_camera.inverse() * self.base_from_object;
-        let mut view = self.view_from(&c_from_o)?;
-        view.camera_jacobian = self.camera.c_v_e() * state.tip_jacobian();
-        Ok(view)
+        project_points(&c_from_o, self.target.points(), &mut view.points)?;
+        view.plane = self.target.plane_in_camera(&c_from_o)?;
+        view.c_from_o = c_from_o;
+        // cVe · eJe   [M42]
+        crate::linalg::mul_rows_to(
+            self.camera.c_v_e(),
+            state.tip_jacobian(),
+            &mut view.camera_jacobian,
+        );
+        Ok(())
     }
 }
 
@@ -1188,10 +1225,11 @@ pub fn simulate_with<const N: usize>(
     let mut outcome = None;
     // The time the task errors went below the convergence threshold and have stayed there since.
     let mut below_since: Option<f64> = None;
+    let mut view = View::default();
     for iteration in 0..parameters.max_iterations {
         let time = iteration as f64 * parameters.period;
-        let view = match scene.observe(&mut workspace, &q) {
-            Ok(view) => view,
+        match scene.observe_into(&mut workspace, &q, &mut view) {
+            Ok(()) => {}
             Err(SimError::Camera(CameraError::PointBehindCamera { index, .. })) => {
                 outcome = Some(Outcome::FeatureLost { point: index });
                 break;

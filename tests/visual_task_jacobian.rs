@@ -193,3 +193,27 @@ fn the_angle_row_of_a_feature_set_is_wrapped() {
         error[2]
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// A view kept across steps and rewritten in place by `observe_into` is what `observe` returns at the new
+    /// configuration: nothing of the previous configuration survives.
+    #[test]
+    fn a_view_rewritten_in_place_is_a_fresh_observation(
+        first in proptest::array::uniform6(-0.05..0.05f64),
+        second in proptest::array::uniform6(-0.05..0.05f64),
+    ) {
+        let (scene, _, desired_q) = scene();
+        let (q1, q2) = (desired_q + JointVector::from(first), desired_q + JointVector::from(second));
+        let mut workspace = KinematicsWorkspace::new();
+        let mut view = scene.observe(&mut workspace, &q1).unwrap();
+        scene.observe_into(&mut workspace, &q2, &mut view).unwrap();
+        let fresh = scene.observe(&mut KinematicsWorkspace::new(), &q2).unwrap();
+        prop_assert_eq!(view, fresh);
+        // The other way round, from a blank placeholder.
+        let mut blank = servostack::sim::View::default();
+        scene.observe_into(&mut workspace, &q1, &mut blank).unwrap();
+        prop_assert_eq!(blank, scene.observe(&mut workspace, &q1).unwrap());
+    }
+}

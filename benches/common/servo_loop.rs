@@ -5,7 +5,7 @@
 //! Include with `#[path = "…/benches/common/servo_loop.rs"] mod servo_loop;`.
 //!
 //! One iteration ([`ServoLoop::step`]) = forward kinematics and `eJe`, camera pose, projection of the four points and
-//! the target plane, the camera Jacobian `cVe eJe` ([`Scene::observe`]); the observation and every task's features,
+//! the target plane, the camera Jacobian `cVe eJe` ([`Scene::observe_into`]); the observation and every task's features,
 //! interaction matrix and `J = L cVe eJe` ([`Task::evaluate`]); the control law (a bare [`control_step`], or a whole
 //! [`StackController::step`]); the Euler step `q ← q + Δt q̇`.
 #![allow(dead_code)] // each including crate uses part of it
@@ -20,7 +20,7 @@ use servostack::law::{
 };
 use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
-use servostack::sim::Scene;
+use servostack::sim::{Scene, View};
 use servostack::target::RectangleTarget;
 use servostack::task::{Task, TaskValue};
 use servostack::visual_task::{classical_task, paper_tasks, VisualContext, VisualTask};
@@ -108,6 +108,8 @@ pub struct ServoLoop {
     law: ControlLaw,
     drive: Drive,
     kinematics: KinematicsWorkspace<6>,
+    /// What the camera sees, rewritten at every step.
+    view: View<6>,
     /// The full method's costs in the simulation (joint limits and visibility, the visibility guarding removals), in
     /// place of the joint limits alone.
     full_method: Option<FullMethodCosts>,
@@ -158,6 +160,7 @@ impl ServoLoop {
             law,
             drive,
             kinematics: KinematicsWorkspace::new(),
+            view: View::default(),
             full_method: None,
             start: start(),
             q: start(),
@@ -311,14 +314,13 @@ impl ServoLoop {
     /// One iteration of the loop (see the module docs). Panics on any failure: the scene is built to stay valid.
     pub fn step(&mut self) {
         let time = self.iteration as f64 * PERIOD;
-        let view = self
-            .scene
-            .observe(&mut self.kinematics, &self.q)
+        self.scene
+            .observe_into(&mut self.kinematics, &self.q, &mut self.view)
             .expect("view");
-        let observation = view.observation().expect("observation");
+        let observation = self.view.observation().expect("observation");
         let context = VisualContext {
             observation: &observation,
-            camera_jacobian: &view.camera_jacobian,
+            camera_jacobian: &self.view.camera_jacobian,
         };
         for (task, value) in self.tasks.iter().zip(self.values.iter_mut()) {
             task.evaluate(&context, value).expect("task");
