@@ -281,15 +281,7 @@ pub fn paper_tasks_with(
         .into_iter()
         .zip(PAPER_TASK_NAMES)
         .zip(gains)
-        .map(|((feature, name), gain)| {
-            VisualTask::new(
-                name,
-                Box::new(FeatureSet::new(vec![feature])),
-                desired,
-                gain,
-                source,
-            )
-        })
+        .map(|((feature, name), gain)| VisualTask::new(name, feature, desired, gain, source))
         .collect()
 }
 

@@ -320,9 +320,9 @@ pub enum InteractionSource {
 pub struct Observation<'a> {
     points: &'a [ImagePoint],
     plane: Option<TargetPlane>,
-    /// Computed at the first [`Observation::moments`] call (`None`: they overflowed), so that features that read the
-    /// points only (e.g. [`AllPoints`]) do not pay for them.
-    moments: std::cell::OnceCell<Option<Moments>>,
+    /// Computed at the first [`Observation::moments`] call, so that features that read the points only (e.g.
+    /// [`AllPoints`]) do not pay for them; kept even when they overflowed (`moments()` then fails).
+    moments: std::cell::OnceCell<Moments>,
 }
 
 impl<'a> Observation<'a> {
@@ -407,14 +407,14 @@ impl<'a> Observation<'a> {
     /// # Errors
     /// [`FeatureError::NonFiniteResult`] when the moments overflow (coordinates beyond about 1e75).
     pub fn moments(&self) -> Result<&Moments, FeatureError> {
-        self.moments
-            .get_or_init(|| {
-                let moments =
-                    Moments::compute(self.points, |p| inverse_depth(self.plane.as_ref(), p));
-                moments.is_finite().then_some(moments)
-            })
-            .as_ref()
-            .ok_or(FeatureError::NonFiniteResult { feature: "moments" })
+        let moments = self.moments.get_or_init(|| {
+            Moments::compute(self.points, |p| inverse_depth(self.plane.as_ref(), p))
+        });
+        if moments.is_finite() {
+            Ok(moments)
+        } else {
+            Err(FeatureError::NonFiniteResult { feature: "moments" })
+        }
     }
 
     /// Number of observed points (at least 1).

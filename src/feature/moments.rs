@@ -45,6 +45,9 @@ pub struct Moments {
     l_mu: [InteractionRow; MOMENT_COUNT],
     /// `Σ (x_k² + y_k²)`, scale of the relative test on `a`.
     scale: f64,
+    /// Whether every moment and row above is finite (false only on overflow of extreme coordinates), decided once
+    /// when they are computed.
+    finite: bool,
 }
 
 impl Moments {
@@ -119,6 +122,14 @@ impl Moments {
                 l_mu[packed(i, j)] = row;
             }
         }
+        let finite = [xg, yg, scale]
+            .iter()
+            .chain(mu.iter())
+            .all(|v| v.is_finite())
+            && [&l_xg, &l_yg]
+                .into_iter()
+                .chain(l_mu.iter())
+                .all(crate::math::all_finite);
         Self {
             n,
             xg,
@@ -128,17 +139,13 @@ impl Moments {
             mu,
             l_mu,
             scale,
+            finite,
         }
     }
 
     /// `true` when every moment and row is finite (false only on overflow of extreme coordinates).
     pub(super) fn is_finite(&self) -> bool {
-        let rows = [&self.l_xg, &self.l_yg].into_iter().chain(self.l_mu.iter());
-        [self.xg, self.yg, self.scale]
-            .iter()
-            .chain(self.mu.iter())
-            .all(|v| v.is_finite())
-            && rows.into_iter().all(crate::math::all_finite)
+        self.finite
     }
 
     /// Number of points N.

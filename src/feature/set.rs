@@ -2,9 +2,9 @@
 //! ([peer scene variant B](crate::theory::peer_scene#variant-b)).
 
 use super::{
-    AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature, FeatureError,
-    InteractionRows, InteractionSource, MomentOrientation, NormalizedCentroid, Observation,
-    PaperInvariants, VispInvariants,
+    check_dim, check_points, AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature,
+    FeatureError, InteractionRows, InteractionSource, MomentOrientation, NormalizedCentroid,
+    Observation, PaperInvariants, VispInvariants,
 };
 
 /// A boxed feature that a [`FeatureSet`] can hold and share across threads.
@@ -134,6 +134,21 @@ impl Feature for FeatureSet {
         }
         Ok(())
     }
+    /// The checked call of the trait, without checking again what the parts have checked: each part's own
+    /// [`Feature::value_and_interaction`] checks its values and rows finite (the error then names the part), and the
+    /// parts' rows are all of the set's.
+    fn value_and_interaction(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+        s: &mut [f64],
+        l: InteractionRows<'_>,
+    ) -> Result<(), FeatureError> {
+        check_points(self, obs)?;
+        check_dim(self, s.len())?;
+        check_dim(self, l.nrows())?;
+        self.write_value_and_interaction(obs, source, s, l)
+    }
     fn write_value_and_interaction(
         &self,
         obs: &Observation<'_>,
@@ -156,6 +171,7 @@ impl Feature for FeatureSet {
 mod tests {
     use super::super::testutil::*;
     use super::*;
+    use crate::camera::ImagePoint;
     use approx::assert_relative_eq;
     use proptest::prelude::*;
 
@@ -280,5 +296,65 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    /// The set's one-pass call keeps the checks of the trait: its own storage sizes and point count, and the parts'
+    /// finite results, each named by its part.
+    #[test]
+    fn one_pass_evaluation_is_checked() {
+        let (c, a, n) = paper_params();
+        let full = FeatureSet::paper_full(c, a, n);
+        let pts = rectangle_points_fronto(0.2, 0.1, 0.5);
+        let obs = Observation::new(&pts, None).unwrap();
+        let source = InteractionSource::Exact;
+        let mut rows = Rows::zeros(7);
+        let wrong_rows =
+            full.value_and_interaction(&obs, source, &mut [0.0; 6], rows.rows_mut(0, 7));
+        assert!(matches!(
+            wrong_rows,
+            Err(FeatureError::WrongDimension {
+                feature: "feature set",
+                expected: 6,
+                got: 7
+            })
+        ));
+        let wrong_values =
+            full.value_and_interaction(&obs, source, &mut [0.0; 5], rows.rows_mut(0, 6));
+        assert!(matches!(
+            wrong_values,
+            Err(FeatureError::WrongDimension {
+                feature: "feature set",
+                expected: 6,
+                got: 5
+            })
+        ));
+        let two = Observation::new(&pts[..2], None).unwrap();
+        let too_few = full.value_and_interaction(&two, source, &mut [0.0; 6], rows.rows_mut(0, 6));
+        assert!(matches!(
+            too_few,
+            Err(FeatureError::TooFewPoints {
+                needed: 3,
+                got: 2,
+                ..
+            })
+        ));
+        // Points so far apart that the third-order invariants overflow while the moments do not.
+        let far = [
+            ImagePoint::new(0.0, 0.0, 1.0),
+            ImagePoint::new(1e70, 0.0, 1.0),
+            ImagePoint::new(0.0, 1e70, 1.0),
+        ];
+        let far = Observation::new(&far, None).unwrap();
+        let invariants = FeatureSet::new(vec![Box::new(VispInvariants)]);
+        let mut l = Rows::zeros(2);
+        assert_eq!(
+            invariants.value_and_interaction(&far, source, &mut [0.0; 2], l.rows_mut(0, 2)),
+            Err(FeatureError::NonFiniteResult {
+                feature: "ViSP P_x, P_y"
+            })
+        );
+        assert!(full
+            .value_and_interaction(&obs, source, &mut [0.0; 6], rows.rows_mut(0, 6))
+            .is_ok());
     }
 }
