@@ -265,14 +265,17 @@ impl<const N: usize> Scene<N> {
     /// # Errors
     /// A point at or behind the camera, a plane through the optical centre.
     pub fn view_from(&self, c_from_o: &Isometry3<f64>) -> Result<View<N>, SimError> {
-        let mut points = [ImagePoint::default(); 4];
-        project_points(c_from_o, self.target.points(), &mut points)?;
-        Ok(View {
-            points,
-            plane: self.target.plane_in_camera(c_from_o)?,
-            camera_jacobian: KinematicJacobian::zeros(),
-            c_from_o: *c_from_o,
-        })
+        let mut view = View::default();
+        self.project_into(c_from_o, &mut view)?;
+        Ok(view)
+    }
+
+    /// The points, plane and pose of the view from `c_from_o`, written into `view` (its Jacobian untouched).
+    fn project_into(&self, c_from_o: &Isometry3<f64>, view: &mut View<N>) -> Result<(), SimError> {
+        project_points(c_from_o, self.target.points(), &mut view.points)?;
+        view.plane = self.target.plane_in_camera(c_from_o)?;
+        view.c_from_o = *c_from_o;
+        Ok(())
     }
 
     /// What the camera sees at configuration `q`: points, plane, camera Jacobian. Allocation-free. A control loop
@@ -304,9 +307,7 @@ impl<const N: usize> Scene<N> {
         let state = self.chain.kinematics(workspace, q)?;
         let base_from_camera = self.camera.base_from_camera(state.base_from_tip());
         let c_from_o = base_from_camera.inverse() * self.base_from_object;
-        project_points(&c_from_o, self.target.points(), &mut view.points)?;
-        view.plane = self.target.plane_in_camera(&c_from_o)?;
-        view.c_from_o = c_from_o;
+        self.project_into(&c_from_o, view)?;
         // cVe · eJe   [M42]
         crate::linalg::mul_rows_to(
             self.camera.c_v_e(),
