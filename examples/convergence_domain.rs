@@ -258,8 +258,9 @@ mod figures {
     use std::path::Path;
 
     /// Every outcome name, in the colour order of the map's legend.
-    const CATEGORIES: [&str; 8] = [
+    const CATEGORIES: [&str; 9] = [
         "converged",
+        "off_goal",
         "joint_limit",
         "feature_lost",
         "stalled",

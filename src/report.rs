@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! {"scenario": str, "runs": [{"name": str,
-//!   "outcome": "converged"|"joint_limit"|"feature_lost"|"max_iterations"|"stalled",
+//!   "outcome": "converged"|"off_goal"|"joint_limit"|"feature_lost"|"max_iterations"|"stalled"|…,
 //!   "reason": str|null, "iterations": int, "joint": int|null, "stacked_at_end": [task names],
 //!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback", "task": str,
 //!               "law_jump": float, "jump": float, "max_step_after": float}],

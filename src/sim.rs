@@ -119,6 +119,7 @@ pub struct Scene<const N: usize> {
     intrinsics: CameraIntrinsics,
     target: RectangleTarget,
     base_from_object: Isometry3<f64>,
+    desired_camera_from_object: Isometry3<f64>,
     limits: JointLimits<N>,
     obstacles: Option<ObstacleCost<N>>,
     visibility: Option<VisibilityCost<N>>,
@@ -187,6 +188,7 @@ impl<const N: usize> Scene<N> {
             intrinsics,
             target,
             base_from_object,
+            desired_camera_from_object: *desired_camera_from_object,
             limits,
             obstacles: None,
             visibility: None,
@@ -258,6 +260,21 @@ impl<const N: usize> Scene<N> {
     /// The target pose in the robot base frame.
     pub fn base_from_object(&self) -> &Isometry3<f64> {
         &self.base_from_object
+    }
+
+    /// The goal: the target pose in the camera frame at the desired configuration (ViSP `cdMo`).
+    pub fn desired_camera_from_object(&self) -> &Isometry3<f64> {
+        &self.desired_camera_from_object
+    }
+
+    /// How far the camera that sees the target at `c_from_o` is from its goal: the translation (m) and the rotation
+    /// angle (degrees) of `c_from_o · cdMo⁻¹`, the camera's displacement expressed in its goal frame.
+    pub fn distance_to_goal(&self, c_from_o: &Isometry3<f64>) -> (f64, f64) {
+        let c_from_cd = c_from_o * self.desired_camera_from_object.inverse();
+        (
+            c_from_cd.translation.vector.norm(),
+            c_from_cd.rotation.angle().to_degrees(),
+        )
     }
 
     /// The view of the target from the camera pose `c_from_o` (no robot involved: for desired images).
@@ -333,6 +350,13 @@ pub struct SimulationParameters {
     /// the run to count as converged: with pixel noise the errors first cross the threshold while the camera still
     /// moves, and "settled" means staying below ([D21](crate::theory#d21)).
     pub convergence_hold_s: f64,
+    /// How far from its goal pose (m) the camera may end when the task errors have converged
+    /// ([D22](crate::theory#d22)); beyond this or [`Self::goal_tolerance_deg`] the run ends as [`Outcome::OffGoal`]
+    /// (default 0.01 m; `+∞`: no check).
+    pub goal_tolerance_m: f64,
+    /// The rotation (degrees) allowed between the camera and its goal pose at convergence (default 1°; `+∞`: no
+    /// check).
+    pub goal_tolerance_deg: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
     /// The robot's velocity limit of a prismatic joint (m/s, > 0; default `+∞`: none). The controller's velocity is
@@ -354,6 +378,8 @@ impl Default for SimulationParameters {
             max_iterations: 10_000,
             convergence_error: 1e-4,
             convergence_hold_s: 0.0,
+            goal_tolerance_m: 0.01,
+            goal_tolerance_deg: 1.0,
             image_margin: 0.0,
             max_prismatic_velocity_m_s: f64::INFINITY,
             max_revolute_velocity_rad_s: f64::INFINITY,
@@ -396,6 +422,8 @@ impl SimulationParameters {
             return invalid("image_margin", self.image_margin, "finite and ≥ 0");
         }
         for (name, value) in [
+            ("goal_tolerance_m", self.goal_tolerance_m),
+            ("goal_tolerance_deg", self.goal_tolerance_deg),
             (
                 "max_prismatic_velocity_m_s",
                 self.max_prismatic_velocity_m_s,
@@ -421,8 +449,18 @@ impl SimulationParameters {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 #[serde(tag = "outcome", rename_all = "snake_case")]
 pub enum Outcome {
-    /// Every task stacked and achieved.
+    /// Every task stacked and achieved, with the camera at its goal pose (within
+    /// [`SimulationParameters::goal_tolerance_m`] and [`SimulationParameters::goal_tolerance_deg`]).
     Converged,
+    /// Every task stacked and its error below the threshold, but the camera away from its goal pose: the features
+    /// take their desired values at another pose too ([D22](crate::theory#d22)), or measurement errors bias where they
+    /// settle. The loop would stay there: the run ends.
+    OffGoal {
+        /// The camera's distance to its goal pose (m).
+        translation_m: f64,
+        /// The rotation between the camera and its goal pose (degrees).
+        rotation_deg: f64,
+    },
     /// A joint left its limits (D11).
     JointLimit {
         /// The joint (0-based).
@@ -467,11 +505,12 @@ pub enum Outcome {
 }
 
 impl Outcome {
-    /// The short name used in summaries: `converged`, `joint_limit`, `feature_lost`, `max_iterations`, `stalled`,
-    /// `collision`.
+    /// The short name used in summaries: `converged`, `off_goal`, `joint_limit`, `feature_lost`, `max_iterations`,
+    /// `stalled`, `image_degenerate`, `collision`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Converged => "converged",
+            Self::OffGoal { .. } => "off_goal",
             Self::JointLimit { .. } => "joint_limit",
             Self::FeatureLost { .. } => "feature_lost",
             Self::MaxIterations { .. } => "max_iterations",
@@ -1319,7 +1358,20 @@ pub fn simulate_with<const N: usize>(
         };
         if below_since.is_some_and(|since| time - since >= parameters.convergence_hold_s) {
             keep(&mut totals, log, record, controller.events())?;
-            outcome = Some(Outcome::Converged);
+            // The features settled; where is the camera? (D22)
+            let (translation_m, rotation_deg) = scene.distance_to_goal(&view.c_from_o);
+            outcome = Some(
+                if translation_m <= parameters.goal_tolerance_m
+                    && rotation_deg <= parameters.goal_tolerance_deg
+                {
+                    Outcome::Converged
+                } else {
+                    Outcome::OffGoal {
+                        translation_m,
+                        rotation_deg,
+                    }
+                },
+            );
             break;
         }
         if let Some(adaptive) = &drive.adaptive_gain {

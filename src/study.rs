@@ -720,13 +720,7 @@ fn method_result<const N: usize>(
         .scene
         .observe(&mut KinematicsWorkspace::new(), &q_end)
     {
-        Ok(view) => {
-            let c_from_cd = view.c_from_o * experiment.desired_camera_from_target.inverse();
-            (
-                c_from_cd.translation.vector.norm(),
-                c_from_cd.rotation.angle().to_degrees(),
-            )
-        }
+        Ok(view) => experiment.scene.distance_to_goal(&view.c_from_o),
         Err(_) => (f64::INFINITY, f64::INFINITY),
     };
     let reason = match &run.outcome {
@@ -783,8 +777,8 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9}",
-            "removals", "per task", "fallback", "covered", "worse", "pose"
+            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
+            "removals", "per task", "fallback", "covered", "worse", "off goal", "pose"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -797,7 +791,7 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9}",
+                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
@@ -807,6 +801,12 @@ impl std::fmt::Display for StudyResult {
                 ),
                 family.full_method_worse_than_stack_gradient,
                 full.map_or("-".into(), |m| m
+                    .outcomes
+                    .get("off_goal")
+                    .copied()
+                    .unwrap_or(0)
+                    .to_string()),
+                full.map_or("-".into(), |m| m
                     .converged_within_pose_tolerance
                     .to_string())
             )?;
@@ -815,8 +815,9 @@ impl std::fmt::Display for StudyResult {
             f,
             "removals: median per run of the full method; per task: median over runs of the most removals of one task; \
              covered: draws where the full method converged among those \
-             where a baseline did; worse: draws where stack_gradient converged and the full method did not; pose: \
-             converged runs of the full method whose camera ended within {} mm / {}° of its goal",
+             where a baseline did; worse: draws where stack_gradient converged and the full method did not; off goal: \
+             runs of the full method whose task errors settled with the camera away from its goal pose (not \
+             converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal",
             POSE_TOLERANCE_M * 1e3,
             POSE_TOLERANCE_DEG
         )?;

@@ -305,6 +305,24 @@ fn convergence_waits_for_the_hold() {
     }
 }
 
+/// `simulation.goal_tolerance_m` / `goal_tolerance_deg` (D22) must be positive numbers (`+∞` switches the check off).
+#[test]
+fn bad_goal_tolerances_are_named() {
+    let line = "convergence_error = 1e-4";
+    for name in ["goal_tolerance_m", "goal_tolerance_deg"] {
+        for bad in ["-1.0", "0.0", "nan"] {
+            let message = error_of(&edited(line, &format!("{line}\n{name} = {bad}")));
+            assert!(message.contains(name), "{name} = {bad}: {message}");
+        }
+        let unchecked = Scenario::from_toml_str(
+            &edited(line, &format!("{line}\n{name} = inf")),
+            Some(assets()),
+        )
+        .and_then(|s| s.experiment::<6>().map(|_| ()));
+        assert!(unchecked.is_ok(), "{name} = inf: {unchecked:?}");
+    }
+}
+
 #[test]
 fn bad_joint_limit_overrides_are_named() {
     let limits = |lower: &str, upper: &str| {
