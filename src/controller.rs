@@ -233,6 +233,13 @@ pub struct ControllerParameters {
     pub criterion: RemovalCriterion,
     /// The decision rule.
     pub rule: DecisionRule,
+    /// `ε_achieved`: with a reserve task ([`StackController::with_reserve_task`], D23), the stack counts as having
+    /// achieved its tasks when every stacked task's error norm `‖e_i‖` is below this (the tasks' units; default 1e−3).
+    pub escape_achieved_error: f64,
+    /// `ε_escape`: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and
+    /// the reserve task's error norm is still above this (its units; default 0.01: for the image points, about 4 px
+    /// of mean distance per corner at a 600 px focal length, above ±2 px of pixel noise).
+    pub escape_error: f64,
 }
 
 impl Default for ControllerParameters {
@@ -253,6 +260,8 @@ impl Default for ControllerParameters {
             allow_removal: true,
             criterion: RemovalCriterion::Combined,
             rule: DecisionRule::Robust,
+            escape_achieved_error: 1e-3,
+            escape_error: 0.01,
         }
     }
 }
@@ -358,6 +367,12 @@ impl ControllerParameters {
         )?;
         let v = f64::from(self.max_removals);
         check("max_removals", v, self.max_removals >= 1, "≥ 1")?;
+        for (name, v) in [
+            ("escape_achieved_error", self.escape_achieved_error),
+            ("escape_error", self.escape_error),
+        ] {
+            check(name, v, !v.is_nan() && v > 0.0, "> 0 (+∞: never)")?;
+        }
         Ok(())
     }
 
@@ -414,15 +429,20 @@ pub enum EventKind {
     /// A removed task was put back without the test: the first that could not come back, after which removals stop
     /// except as a last resort, or one removed as a last resort, after its dwell (D13).
     Fallback,
+    /// The reserve task took the place of the last task of the sequence: the stack had achieved its tasks with the
+    /// reserve task's error still large, a false equilibrium of the sequence's features (D23). The event's task is the
+    /// reserve task.
+    Escape,
 }
 
 impl EventKind {
-    /// The verb used in logs and figures: `push`, `remove`, `reinsert`, `fallback`.
+    /// The verb used in logs and figures: `push`, `remove`, `reinsert`, `fallback`, `escape`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Push => "push",
             Self::Remove => "remove",
             Self::Reinsert => "reinsert",
+            Self::Escape => "escape",
             Self::Fallback => "fallback",
         }
     }
@@ -533,6 +553,11 @@ pub enum ControllerStatus {
 pub struct StackController<const N: usize> {
     parameters: ControllerParameters,
     task_count: usize,
+    /// The tasks pushed in sequence: all but a reserve task (D23).
+    sequence_len: usize,
+    /// The reserve task (the last of the list) and whether it has taken its place (D23).
+    reserve: Option<usize>,
+    escaped: bool,
     stacked: Vec<usize>,
     next_push: usize,
     /// Removed tasks, in priority order.
@@ -628,6 +653,9 @@ impl<const N: usize> StackController<N> {
         Ok(Self {
             parameters,
             task_count: count,
+            sequence_len: count,
+            reserve: None,
+            escaped: false,
             stacked: Vec::with_capacity(count),
             next_push: 0,
             removed: Vec::with_capacity(count),
@@ -674,6 +702,33 @@ impl<const N: usize> StackController<N> {
         Ok(self)
     }
 
+    /// The controller with the last task of the list held in reserve (D23): it is not pushed in sequence; once the
+    /// sequence is complete, no task is out, the stack has settled and every stacked task's error is below
+    /// [`ControllerParameters::escape_achieved_error`] while the reserve task's is above
+    /// [`ControllerParameters::escape_error`], the reserve task takes the place of the last task of the sequence, once
+    /// ([`EventKind::Escape`]). For visual servoing: the four image points, which the paper's features do not
+    /// determine — the features can be achieved at a pose other than the goal.
+    ///
+    /// # Errors
+    /// [`ControllerError::InvalidParameter`] for a list of fewer than two tasks.
+    pub fn with_reserve_task(mut self) -> Result<Self, ControllerError> {
+        if self.task_count < 2 {
+            return Err(ControllerError::InvalidParameter {
+                name: "reserve task",
+                value: self.task_count as f64,
+                expected: "a list of at least two tasks",
+            });
+        }
+        self.sequence_len = self.task_count - 1;
+        self.reserve = Some(self.task_count - 1);
+        Ok(self)
+    }
+
+    /// The reserve task, if it has taken its place in the stack (D23).
+    pub fn escaped_to(&self) -> Option<usize> {
+        self.reserve.filter(|_| self.escaped)
+    }
+
     /// The parameters.
     pub fn parameters(&self) -> &ControllerParameters {
         &self.parameters
@@ -689,9 +744,9 @@ impl<const N: usize> StackController<N> {
         &self.removed
     }
 
-    /// `true` when every task of the list is stacked (none pending, none removed).
+    /// `true` when every task of the sequence is pushed and none is removed (a reserve task, D23, is not waited for).
     pub fn is_complete(&self) -> bool {
-        self.next_push == self.task_count && self.removed.is_empty()
+        self.next_push == self.sequence_len && self.removed.is_empty()
     }
 
     /// `true` once the controller has fallen back to the stack with gradient (D13): no task is removed any more, except
@@ -712,7 +767,7 @@ impl<const N: usize> StackController<N> {
                 predicted_cost,
                 threshold,
             }
-        } else if self.next_push < self.task_count {
+        } else if self.next_push < self.sequence_len {
             ControllerStatus::Pushing {
                 next: self.next_push,
                 stack_velocity_norm: self.last_stack_velocity_norm,
@@ -915,6 +970,33 @@ impl<const N: usize> StackController<N> {
             removal: None,
             reinsertion: None,
         });
+    }
+
+    /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
+    /// reserve task has not (called with the sequence complete, no task out and the stack settled).
+    fn escape(&mut self, tasks: &[TaskValue<N>], iteration: usize, time: f64) -> Option<EventKind> {
+        let reserve = self.reserve.filter(|_| !self.escaped)?;
+        let achieved = self
+            .stacked
+            .iter()
+            .all(|&t| tasks[t].error().norm() < self.parameters.escape_achieved_error);
+        if !achieved || tasks[reserve].error().norm() <= self.parameters.escape_error {
+            return None;
+        }
+        let last = *self.stacked.last()?;
+        self.stacked.retain(|&t| t != last);
+        self.insert_by_priority(reserve);
+        self.escaped = true;
+        self.record(StackEvent {
+            iteration,
+            time,
+            kind: EventKind::Escape,
+            task: reserve,
+            law_jump: 0.0,
+            removal: None,
+            reinsertion: None,
+        });
+        Some(EventKind::Escape)
     }
 
     fn insert_by_priority(&mut self, task: usize) {
@@ -1321,11 +1403,11 @@ impl<const N: usize> StackController<N> {
             return Ok(None);
         }
         if self.removed.is_empty() {
-            if self.next_push < self.task_count {
+            if self.next_push < self.sequence_len {
                 self.push_next(iteration, time);
                 return Ok(Some(EventKind::Push));
             }
-            return Ok(None);
+            return Ok(self.escape(tasks, iteration, time));
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));
@@ -1373,7 +1455,7 @@ impl<const N: usize> StackController<N> {
         if !tested {
             return Ok(None);
         }
-        if robust && self.next_push < self.task_count {
+        if robust && self.next_push < self.sequence_len {
             // No removed task can come back here: make progress with the next task instead (the paper's e4 achieved
             // while e3 is out). The removed ones are tested again once the stack has settled.
             self.push_next(iteration, time);

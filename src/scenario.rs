@@ -60,7 +60,9 @@ use crate::sim::{
 use crate::stack::StackParameters;
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::TaskError;
-use crate::visual_task::{classical_task_with, paper_tasks_with, FourthTask, VisualTask};
+use crate::visual_task::{
+    classical_task_with, image_points_task, paper_tasks_with, FourthTask, VisualTask,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -870,14 +872,21 @@ impl Scenario {
                     source,
                     self.tasks.fourth_task,
                 )?]),
-                _ => paper_tasks_with(
-                    desired,
-                    desired_depth,
-                    a_priori_depth,
-                    self.tasks.gains,
-                    source,
-                    self.tasks.fourth_task,
-                ),
+                _ => {
+                    let mut tasks = paper_tasks_with(
+                        desired,
+                        desired_depth,
+                        a_priori_depth,
+                        self.tasks.gains,
+                        source,
+                        self.tasks.fourth_task,
+                    )?;
+                    // The full method holds the image points in reserve (D23), at the last task's gain.
+                    if kind == RunKind::StackController {
+                        tasks.push(image_points_task(desired, self.tasks.gains[3], source)?);
+                    }
+                    Ok(tasks)
+                }
             }
         };
         let tasks = tasks_for(&desired)?;
@@ -927,6 +936,7 @@ impl Scenario {
             },
             sensing: sensing.as_ref(),
             adaptive_gain,
+            reserve_task: kind == RunKind::StackController,
         };
         Ok(simulate_with(
             &experiment.scene,

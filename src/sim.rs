@@ -1153,6 +1153,10 @@ pub struct Drive<'a> {
     /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's gain at every period (as the servo façade's); `None`: the
     /// tasks' constant gains.
     pub adaptive_gain: Option<AdaptiveGain>,
+    /// Whether the last task of the list is held in reserve ([`StackController::with_reserve_task`],
+    /// [D23](crate::theory#d23)): the full method's image points, which take the place of the last task when the
+    /// features settle away from the desired image. Until then its error does not count for convergence.
+    pub reserve_task: bool,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget, and keeps every record
@@ -1212,6 +1216,11 @@ pub fn simulate_with<const N: usize>(
         .transpose()?;
     let mut controller = StackController::new(drive.controller, &values)?
         .with_protected_tasks(drive.protected_tasks)?;
+    if drive.reserve_task {
+        controller = controller.with_reserve_task()?;
+    }
+    // A reserve task counts for convergence once it is stacked.
+    let reserve = drive.reserve_task.then(|| tasks.len() - 1);
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
     // avoidance cost and guards its removals (D6 (d)).
     let default_visibility = match &scene.visibility {
@@ -1346,11 +1355,13 @@ pub fn simulate_with<const N: usize>(
         record.criteria.clear();
         record.image = view.points;
         record.obstacle_distance = closest.as_ref().map(|(_, _, d)| *d);
+        let waiting_reserve = reserve.filter(|_| controller.escaped_to().is_none());
         let below = controller.is_complete()
             && record
                 .task_errors
                 .iter()
-                .all(|&e| e < parameters.convergence_error);
+                .enumerate()
+                .all(|(i, &e)| e < parameters.convergence_error || Some(i) == waiting_reserve);
         below_since = if below {
             below_since.or(Some(time))
         } else {

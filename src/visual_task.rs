@@ -21,7 +21,7 @@
 //! [`SideRatios`].
 
 use crate::feature::{
-    AreaNormalization, AreaNormalized, BoxedFeature, Centroid, DiagonalAngle, Feature,
+    AllPoints, AreaNormalization, AreaNormalized, BoxedFeature, Centroid, DiagonalAngle, Feature,
     FeatureError, FeatureSet, InteractionSource, Observation, PaperInvariants, SideRatios,
 };
 use crate::math::{wrap_angle, KinematicJacobian};
@@ -33,6 +33,9 @@ pub const PAPER_TASK_NAMES: [&str; 4] = ["centroid", "angle", "area", "third_ord
 
 /// The name of the classical full task.
 pub const CLASSICAL_TASK_NAME: &str = "full";
+
+/// The name of the image-points task ([`image_points_task`]), the full method's reserve task.
+pub const IMAGE_POINTS_TASK_NAME: &str = "image_points";
 
 /// What a visual task reads at each control period.
 #[derive(Debug, Clone, Copy)]
@@ -323,6 +326,29 @@ pub fn classical_task_with(
     let features = paper_feature_list(desired, desired_depth, a_priori_depth, fourth)?;
     let set = FeatureSet::new(features.into_iter().collect());
     VisualTask::new(CLASSICAL_TASK_NAME, Box::new(set), desired, gain, source)
+}
+
+/// The image points of `desired`, stacked, as one task (`2N` rows, \[M28\] per point), named [`IMAGE_POINTS_TASK_NAME`],
+/// with gain `gain` (s⁻¹). The full method holds it in reserve ([D23](crate::theory#d23)): the labelled corners of a
+/// planar target seen from its front take their desired positions at the goal pose only, which the paper's six
+/// features do not guarantee.
+///
+/// # Errors
+/// [`TaskError::InvalidGain`]; [`TaskError::Feature`] for an empty desired observation.
+pub fn image_points_task(
+    desired: &Observation<'_>,
+    gain: f64,
+    source: InteractionSource,
+) -> Result<VisualTask, TaskError> {
+    let feature =
+        AllPoints::new(desired.len()).map_err(|e| feature_error(IMAGE_POINTS_TASK_NAME, e))?;
+    VisualTask::new(
+        IMAGE_POINTS_TASK_NAME,
+        Box::new(feature),
+        desired,
+        gain,
+        source,
+    )
 }
 
 /// The four features of the paper's sequence, the fourth chosen by `fourth` ([`FourthTask::resolve`]).
