@@ -724,6 +724,11 @@ impl<const N: usize> StackController<N> {
         Ok(self)
     }
 
+    /// The reserve task (D23), if the controller has one.
+    pub fn reserve_task(&self) -> Option<usize> {
+        self.reserve
+    }
+
     /// The reserve task, if it has taken its place in the stack (D23).
     pub fn escaped_to(&self) -> Option<usize> {
         self.reserve.filter(|_| self.escaped)

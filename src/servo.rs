@@ -66,7 +66,7 @@ use crate::robot::{KinematicsWorkspace, RobotError, SerialChain};
 use crate::target::{RectangleTarget, TargetError};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{
-    classical_task_with, paper_tasks_with, FourthTask, VisualContext, VisualTask,
+    classical_task_with, image_points_task, paper_tasks_with, FourthTask, VisualContext, VisualTask,
 };
 use nalgebra::{Isometry3, Point2, Vector6};
 
@@ -74,8 +74,8 @@ use nalgebra::{Isometry3, Point2, Vector6};
 /// (or normalised coordinates for [`VisualServo::step_normalized`]), `None` when the detector lost a corner.
 pub type Corners = [Option<(f64, f64)>; 4];
 
-/// The largest number of tasks (the paper's sequence).
-pub const MAX_TASKS: usize = 4;
+/// The largest number of tasks: the paper's sequence and the image points held in reserve ([D23](crate::theory#d23)).
+pub const MAX_TASKS: usize = 5;
 
 /// Errors of the façade. Measurement errors (per period) leave the servo's memory as it was: the caller sends zero (or
 /// holds its last command) and goes on with the next period.
@@ -292,7 +292,9 @@ pub enum DesiredImage {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TaskChoice {
     /// The paper's sequence, stacked by the controller: centroid, angle, `a_n`, and the fourth task
-    /// ([`FourthTask::Auto`]: `P_x, P_y`, or the side ratios on a square seen head-on), with gains `λ_i` (s⁻¹).
+    /// ([`FourthTask::Auto`]: `P_x, P_y`, or the side ratios on a square seen head-on), with gains `λ_i` (s⁻¹); and, in
+    /// reserve, the four image points at the fourth task's gain, which take its place when the stack settles with the
+    /// corners away from their desired positions ([D23](crate::theory#d23)).
     Sequence {
         /// `λ_1 … λ_4` (s⁻¹, > 0).
         gains: [f64; 4],
@@ -352,7 +354,7 @@ pub struct ServoConfig<const N: usize> {
     /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's constant gain (default `None`: the constant gains).
     pub adaptive_gain: Option<AdaptiveGain>,
     /// The servo has converged when every task is stacked and `‖e_i‖ < convergence_error` for each (in the tasks'
-    /// units: normalised image coordinates, rad, dimensionless). Default 1e−4.
+    /// units: normalised image coordinates, rad, dimensionless; see [`ServoOutput::converged`]). Default 1e−4.
     pub convergence_error: f64,
     /// Whether the centroid task (the first) is never removed ([D6](crate::theory#d6)): it keeps the target in the
     /// image. Default `true`.
@@ -400,25 +402,30 @@ pub struct ServoOutput<const N: usize> {
     pub scale: f64,
     /// `true` when `s < 1` (a limit was active).
     pub scaled: bool,
-    /// `‖[e_1; …; e_n]‖` over every task, stacked or not.
+    /// `‖[e_1; …; e_n]‖` over every task, stacked or not (the reserve image points included).
     pub error_norm: f64,
     /// `‖e_i‖` of each task (the first [`Self::task_count`] entries).
     pub task_errors: [f64; MAX_TASKS],
     /// `λ_i` (s⁻¹) used this period (adaptive or constant).
     pub task_gains: [f64; MAX_TASKS],
-    /// The number of tasks (4 for the sequence, 1 for the classical task).
+    /// The number of tasks (5 for the sequence: the paper's four and the image points held in reserve,
+    /// [D23](crate::theory#d23); 1 for the classical task).
     pub task_count: usize,
     /// The tasks stacked after this period's change (the first [`Self::stack_len`] entries, highest priority first).
     pub stack: [usize; MAX_TASKS],
     /// How many tasks are stacked.
     pub stack_len: usize,
-    /// The stack change made this period (push, removal, re-insertion, fallback), if any.
+    /// The stack change made this period (push, removal, re-insertion, fallback, escape), if any.
     pub event: Option<EventKind>,
     /// `‖q̇_n‖`, the norm of the stack velocity without transition and avoidance (mixed rad/s and m/s): the controller
     /// pushes the next task, or tries to put a removed one back, once it is below
     /// [`ControllerParameters::settle_velocity_with_removal`] ([D5](crate::theory#d5)).
     pub stack_velocity_norm: f64,
-    /// Every task stacked and `‖e_i‖ < convergence_error` for each.
+    /// Every task of the sequence stacked, `‖e_i‖ < convergence_error` for each, and the corners at their desired
+    /// positions: the reserve image points' error at most [`ControllerParameters::escape_error`] while they wait,
+    /// below `convergence_error` once they have taken the fourth task's place ([D23](crate::theory#d23)). The
+    /// paper's features alone can be achieved at a pose other than the goal. (`escape_error = +∞` switches off both the
+    /// escape and this check.)
     pub converged: bool,
     /// The depths used (m), one per corner.
     pub depths: [f64; 4],
@@ -504,14 +511,18 @@ impl<const N: usize> VisualServo<N> {
                 source,
             })?;
         let tasks = match config.tasks {
-            TaskChoice::Sequence { gains, fourth } => paper_tasks_with(
-                &desired,
-                desired_depth,
-                desired_depth,
-                gains,
-                config.interaction,
-                fourth,
-            )?,
+            TaskChoice::Sequence { gains, fourth } => {
+                let mut tasks = paper_tasks_with(
+                    &desired,
+                    desired_depth,
+                    desired_depth,
+                    gains,
+                    config.interaction,
+                    fourth,
+                )?;
+                tasks.push(image_points_task(&desired, gains[3], config.interaction)?);
+                tasks
+            }
             TaskChoice::Classical { gain, fourth } => vec![classical_task_with(
                 &desired,
                 desired_depth,
@@ -538,8 +549,11 @@ impl<const N: usize> VisualServo<N> {
         } else {
             &[]
         };
-        let controller =
+        let mut controller =
             StackController::new(config.controller, &values)?.with_protected_tasks(protected)?;
+        if matches!(config.tasks, TaskChoice::Sequence { .. }) {
+            controller = controller.with_reserve_task()?;
+        }
         let limits = JointLimits::new(
             *config.chain.lower_limits(),
             *config.chain.upper_limits(),
@@ -813,10 +827,20 @@ impl<const N: usize> VisualServo<N> {
         let stacked = self.controller.stacked();
         output.stack_len = stacked.len().min(MAX_TASKS);
         output.stack[..output.stack_len].copy_from_slice(&stacked[..output.stack_len]);
+        // A reserve task not stacked yet (D23) counts only as a check that the corners are where they should be.
+        let waiting_reserve = match (self.controller.reserve_task(), self.controller.escaped_to()) {
+            (Some(reserve), None) => Some(reserve),
+            _ => None,
+        };
+        let escape_error = self.controller.parameters().escape_error;
         output.converged = self.controller.is_complete()
             && task_errors[..output.task_count]
                 .iter()
-                .all(|&e| e < self.convergence_error);
+                .enumerate()
+                .all(|(i, &e)| match waiting_reserve {
+                    Some(reserve) if i == reserve => e <= escape_error,
+                    _ => e < self.convergence_error,
+                });
         output.camera_twist = camera_jacobian * velocity;
         Ok(())
     }

@@ -1220,7 +1220,7 @@ pub fn simulate_with<const N: usize>(
         controller = controller.with_reserve_task()?;
     }
     // A reserve task counts for convergence once it is stacked.
-    let reserve = drive.reserve_task.then(|| tasks.len() - 1);
+    let reserve = controller.reserve_task();
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
     // avoidance cost and guards its removals (D6 (d)).
     let default_visibility = match &scene.visibility {
