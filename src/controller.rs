@@ -237,8 +237,11 @@ pub struct ControllerParameters {
     /// achieved its tasks when every stacked task's error norm `‖e_i‖` is below this (the tasks' units; default 1e−3).
     pub escape_achieved_error: f64,
     /// `ε_escape`: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and
-    /// the reserve task's error norm is still above this (its units; default 0.01: for the image points, about 4 px
-    /// of mean distance per corner at a 600 px focal length, above ±2 px of pixel noise).
+    /// the reserve task's error norm is still above this (its units; default 0.005: for the image points, 1.5 px per
+    /// corner at a 600 px focal length). Window (convergence-domain study, 200 draws per family, seed 1): 0.002 and
+    /// 0.005 give the same figures; 0.01 leaves 2–3 of the Afma6's turned views at near-goal false equilibria, 0.02
+    /// and 0.05 leave 15–23. Below the noise of the corners the escape may happen at the goal itself, where it does
+    /// no harm (the points' goal is the same): the noisy Afma6 scenarios give the same figures at 0.005 as at 0.01.
     pub escape_error: f64,
 }
 
@@ -261,7 +264,7 @@ impl Default for ControllerParameters {
             criterion: RemovalCriterion::Combined,
             rule: DecisionRule::Robust,
             escape_achieved_error: 1e-3,
-            escape_error: 0.01,
+            escape_error: 0.005,
         }
     }
 }
