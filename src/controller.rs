@@ -556,8 +556,6 @@ pub enum ControllerStatus {
 pub struct StackController<const N: usize> {
     parameters: ControllerParameters,
     task_count: usize,
-    /// The tasks pushed in sequence: all but a reserve task (D23).
-    sequence_len: usize,
     /// The reserve task (the last of the list) and whether it has taken its place (D23).
     reserve: Option<usize>,
     escaped: bool,
@@ -656,7 +654,6 @@ impl<const N: usize> StackController<N> {
         Ok(Self {
             parameters,
             task_count: count,
-            sequence_len: count,
             reserve: None,
             escaped: false,
             stacked: Vec::with_capacity(count),
@@ -722,9 +719,13 @@ impl<const N: usize> StackController<N> {
                 expected: "a list of at least two tasks",
             });
         }
-        self.sequence_len = self.task_count - 1;
         self.reserve = Some(self.task_count - 1);
         Ok(self)
+    }
+
+    /// The number of tasks pushed in sequence: all but a reserve task (D23).
+    fn sequence_len(&self) -> usize {
+        self.task_count - usize::from(self.reserve.is_some())
     }
 
     /// The reserve task (D23), if the controller has one.
@@ -754,7 +755,7 @@ impl<const N: usize> StackController<N> {
 
     /// `true` when every task of the sequence is pushed and none is removed (a reserve task, D23, is not waited for).
     pub fn is_complete(&self) -> bool {
-        self.next_push == self.sequence_len && self.removed.is_empty()
+        self.next_push == self.sequence_len() && self.removed.is_empty()
     }
 
     /// `true` once the controller has fallen back to the stack with gradient (D13): no task is removed any more, except
@@ -775,7 +776,7 @@ impl<const N: usize> StackController<N> {
                 predicted_cost,
                 threshold,
             }
-        } else if self.next_push < self.sequence_len {
+        } else if self.next_push < self.sequence_len() {
             ControllerStatus::Pushing {
                 next: self.next_push,
                 stack_velocity_norm: self.last_stack_velocity_norm,
@@ -1411,7 +1412,7 @@ impl<const N: usize> StackController<N> {
             return Ok(None);
         }
         if self.removed.is_empty() {
-            if self.next_push < self.sequence_len {
+            if self.next_push < self.sequence_len() {
                 self.push_next(iteration, time);
                 return Ok(Some(EventKind::Push));
             }
@@ -1463,7 +1464,7 @@ impl<const N: usize> StackController<N> {
         if !tested {
             return Ok(None);
         }
-        if robust && self.next_push < self.sequence_len {
+        if robust && self.next_push < self.sequence_len() {
             // No removed task can come back here: make progress with the next task instead (the paper's e4 achieved
             // while e3 is out). The removed ones are tested again once the stack has settled.
             self.push_next(iteration, time);
