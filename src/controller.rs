@@ -728,14 +728,9 @@ impl<const N: usize> StackController<N> {
         self.task_count - usize::from(self.reserve.is_some())
     }
 
-    /// The reserve task (D23), if the controller has one.
-    pub fn reserve_task(&self) -> Option<usize> {
-        self.reserve
-    }
-
-    /// The reserve task, if it has taken its place in the stack (D23).
-    pub fn escaped_to(&self) -> Option<usize> {
-        self.reserve.filter(|_| self.escaped)
+    /// The reserve task (D23) while it waits: `None` without one, or once it has taken its place in the stack.
+    pub fn waiting_reserve(&self) -> Option<usize> {
+        self.reserve.filter(|_| !self.escaped)
     }
 
     /// The parameters.
@@ -984,7 +979,7 @@ impl<const N: usize> StackController<N> {
     /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
     /// reserve task has not (called with the sequence complete, no task out and the stack settled).
     fn escape(&mut self, tasks: &[TaskValue<N>], iteration: usize, time: f64) -> Option<EventKind> {
-        let reserve = self.reserve.filter(|_| !self.escaped)?;
+        let reserve = self.waiting_reserve()?;
         let achieved = self
             .stacked
             .iter()

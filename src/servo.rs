@@ -828,10 +828,7 @@ impl<const N: usize> VisualServo<N> {
         output.stack_len = stacked.len().min(MAX_TASKS);
         output.stack[..output.stack_len].copy_from_slice(&stacked[..output.stack_len]);
         // A reserve task not stacked yet (D23) counts only as a check that the corners are where they should be.
-        let waiting_reserve = match (self.controller.reserve_task(), self.controller.escaped_to()) {
-            (Some(reserve), None) => Some(reserve),
-            _ => None,
-        };
+        let waiting_reserve = self.controller.waiting_reserve();
         let escape_error = self.controller.parameters().escape_error;
         output.converged = self.controller.is_complete()
             && task_errors[..output.task_count]

@@ -1219,8 +1219,6 @@ pub fn simulate_with<const N: usize>(
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }
-    // A reserve task counts for convergence once it is stacked.
-    let reserve = controller.reserve_task();
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
     // avoidance cost and guards its removals (D6 (d)).
     let default_visibility = match &scene.visibility {
@@ -1355,7 +1353,8 @@ pub fn simulate_with<const N: usize>(
         record.criteria.clear();
         record.image = view.points;
         record.obstacle_distance = closest.as_ref().map(|(_, _, d)| *d);
-        let waiting_reserve = reserve.filter(|_| controller.escaped_to().is_none());
+        // A reserve task counts for convergence once it is stacked.
+        let waiting_reserve = controller.waiting_reserve();
         let below = controller.is_complete()
             && record
                 .task_errors
