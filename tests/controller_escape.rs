@@ -1,7 +1,9 @@
 //! D23: a reserve task takes the place of the last task of the sequence when the stack has achieved its tasks at a
-//! false equilibrium. Synthetic joint-space tasks on three joints: the sequence's second task, `s = q₁²` with
-//! `s* = 0.25`, is achieved at `q₁ = ±0.5`, and from a negative start it settles at −0.5; the reserve task, `q₁` with
-//! desired value 0.5, is achieved at the goal only.
+//! false equilibrium; D24: earlier, as soon as the complete stack drives the reserve task's error up. Synthetic
+//! joint-space tasks on three joints: the sequence's second task, `s = q₁²` with `s* = 0.25`, is achieved at
+//! `q₁ = ±0.5`, and from a negative start it settles at −0.5; the reserve task, `q₁` with desired value 0.5, is
+//! achieved at the goal only. From `q₁ = −0.8` the second task moves `q₁` up, towards the reserve's goal, until it
+//! stops at −0.5 (D23's case); from `q₁ = −0.3` it moves `q₁` down, away from it (D24's case).
 
 use servostack::controller::{ControllerError, ControllerParameters, EventKind, StackController};
 use servostack::law::ControlLaw;
@@ -59,6 +61,11 @@ struct Outcome {
 
 /// Runs the tasks from `q₁ = −0.8` for 30 s (10 ms periods), no avoidance cost.
 fn run(reserve: bool, parameters: ControllerParameters) -> Outcome {
+    run_from(-0.8, reserve, parameters)
+}
+
+/// Runs the tasks from `q = (0, q₁, 0)` for 30 s (10 ms periods), no avoidance cost.
+fn run_from(q1: f64, reserve: bool, parameters: ControllerParameters) -> Outcome {
     let tasks = tasks(reserve);
     let mut values: Vec<TaskValue<3>> = tasks
         .iter()
@@ -69,7 +76,7 @@ fn run(reserve: bool, parameters: ControllerParameters) -> Outcome {
     if reserve {
         controller = controller.with_reserve_task().unwrap();
     }
-    let (dt, mut q) = (0.01, JointVector::<3>::new(0.0, -0.8, 0.0));
+    let (dt, mut q) = (0.01, JointVector::<3>::new(0.0, q1, 0.0));
     let mut sent = Vec::new();
     for iteration in 0..3000 {
         for (task, value) in tasks.iter().zip(values.iter_mut()) {
@@ -150,16 +157,115 @@ fn no_escape_above_the_reserve_threshold_or_before_the_stack_is_achieved() {
     assert!(out.events.iter().all(|e| e.1 != EventKind::Escape));
 }
 
+/// The iterations of the events of one kind.
+fn iterations_of(out: &Outcome, kind: EventKind) -> Vec<usize> {
+    out.events
+        .iter()
+        .filter(|e| e.1 == kind)
+        .map(|e| e.0)
+        .collect()
+}
+
+/// The lowest `q₁` of a run from `q₁ = start`, integrated from the velocities sent as the run did.
+fn lowest_q1(start: f64, out: &Outcome) -> f64 {
+    out.sent
+        .iter()
+        .scan(start, |q1, v| {
+            *q1 += v[1] * 0.01;
+            Some(*q1)
+        })
+        .fold(start, f64::min)
+}
+
+#[test]
+fn the_reserve_comes_in_as_soon_as_the_stack_drives_its_error_up() {
+    // From −0.3 the ambiguous task heads for −0.5, away from the reserve's goal 0.5.
+    let early = run_from(-0.3, true, ControllerParameters::default());
+    assert!((early.q[1] - 0.5).abs() < 1e-3, "{:?}", early.q);
+    let pushes = iterations_of(&early, EventKind::Push);
+    let escapes = iterations_of(&early, EventKind::Escape);
+    assert_eq!((pushes.len(), escapes.len()), (2, 1), "{:?}", early.events);
+    // One transition time (1/μ = 0.1 s with the default μ = 10 · λ) after the push: the law's transient is not judged,
+    // and nothing had settled yet (the settled test needs n_settle = 5 transition times).
+    let after_push = escapes[0] - pushes[1];
+    assert!((10..=12).contains(&after_push), "{:?}", early.events);
+    // No velocity jump at the escape (D1).
+    let k = escapes[0];
+    assert!((early.sent[k] - early.sent[k - 1]).norm() < 1e-9);
+    // Joint 1 turned back before it got near the false equilibrium.
+    assert!(
+        lowest_q1(-0.3, &early) > -0.4,
+        "{}",
+        lowest_q1(-0.3, &early)
+    );
+
+    // Without the early escape (r_escape = +∞) the stack first settles at −0.5, and only D23 brings the reserve in.
+    let late = run_from(
+        -0.3,
+        true,
+        ControllerParameters {
+            escape_growth_rate: f64::INFINITY,
+            ..ControllerParameters::default()
+        },
+    );
+    assert!((late.q[1] - 0.5).abs() < 1e-3, "{:?}", late.q);
+    assert!(lowest_q1(-0.3, &late) < -0.49, "{}", lowest_q1(-0.3, &late));
+    let late_escape = iterations_of(&late, EventKind::Escape);
+    assert_eq!(late_escape.len(), 1);
+    assert!(
+        late_escape[0] > escapes[0] + 100,
+        "D23 waits for the settled false equilibrium: {} vs {}",
+        late_escape[0],
+        escapes[0]
+    );
+}
+
+#[test]
+fn no_early_escape_while_the_stack_drives_the_reserve_towards_its_goal() {
+    // From −0.8 the ambiguous task moves q₁ towards 0.5 until it stops at −0.5: the escape comes only once settled
+    // there (D23), the same with and without D24.
+    let with = run(true, ControllerParameters::default());
+    let without = run(
+        true,
+        ControllerParameters {
+            escape_growth_rate: f64::INFINITY,
+            ..ControllerParameters::default()
+        },
+    );
+    assert_eq!(with.events, without.events);
+    let pushes = iterations_of(&with, EventKind::Push);
+    let escapes = iterations_of(&with, EventKind::Escape);
+    assert_eq!(escapes.len(), 1);
+    assert!(escapes[0] > pushes[1] + 100, "{:?}", with.events);
+    // A growth threshold above the rate at which the stack drives the reserve's error up from −0.3 keeps the early
+    // escape out too: that rate, u₁/e_r = λ (0.25 − q₁²) / (2 q₁ (q₁ − 0.5)), is 1/3 s⁻¹ at −0.3 and falls towards 0
+    // at −0.5.
+    let high = run_from(
+        -0.3,
+        true,
+        ControllerParameters {
+            escape_growth_rate: 1.0,
+            ..ControllerParameters::default()
+        },
+    );
+    let high_escapes = iterations_of(&high, EventKind::Escape);
+    assert_eq!(high_escapes.len(), 1);
+    assert!(high_escapes[0] > iterations_of(&high, EventKind::Push)[1] + 100);
+}
+
 #[test]
 fn escape_parameters_and_lists_too_short_are_named() {
     for (name, value) in [
         ("escape_error", f64::NAN),
         ("escape_error", 0.0),
         ("escape_achieved_error", -1.0),
+        ("escape_growth_rate", f64::NAN),
+        ("escape_growth_rate", -0.1),
     ] {
         let mut parameters = ControllerParameters::default();
         match name {
             "escape_error" => parameters.escape_error = value,
+            "escape_growth_rate" => parameters.escape_growth_rate = value,
             _ => parameters.escape_achieved_error = value,
         }
         match parameters.validate() {
