@@ -5,6 +5,10 @@
 //! achieved at the goal only. From `q₁ = −0.8` the second task moves `q₁` up, towards the reserve's goal, until it
 //! stops at −0.5 (D23's case); from `q₁ = −0.3` it moves `q₁` down, away from it (D24's case).
 
+#[path = "common/counting_allocator.rs"]
+mod counting_allocator;
+
+use counting_allocator::allocations_during;
 use servostack::controller::{ControllerError, ControllerParameters, EventKind, StackController};
 use servostack::law::ControlLaw;
 use servostack::math::JointVector;
@@ -57,6 +61,8 @@ struct Outcome {
     events: Vec<(usize, EventKind, usize)>,
     stacked: Vec<usize>,
     sent: Vec<JointVector<3>>,
+    /// Heap allocations made by the controller's steps once the whole sequence was pushed (the escape tests run there).
+    allocations_after_pushes: usize,
 }
 
 /// Runs the tasks from `q₁ = −0.8` for 30 s (10 ms periods), no avoidance cost.
@@ -77,14 +83,21 @@ fn run_from(q1: f64, reserve: bool, parameters: ControllerParameters) -> Outcome
         controller = controller.with_reserve_task().unwrap();
     }
     let (dt, mut q) = (0.01, JointVector::<3>::new(0.0, q1, 0.0));
-    let mut sent = Vec::new();
+    let mut sent = Vec::with_capacity(3000);
+    let mut allocations_after_pushes = 0;
     for iteration in 0..3000 {
         for (task, value) in tasks.iter().zip(values.iter_mut()) {
             task.evaluate(&q, value).unwrap();
         }
-        let step = controller
-            .step(&law, &values, None, &q, iteration, iteration as f64 * dt)
-            .unwrap();
+        let pushed_all = controller.is_complete();
+        let mut step = None;
+        let allocations = allocations_during(|| {
+            step = Some(controller.step(&law, &values, None, &q, iteration, iteration as f64 * dt));
+        });
+        if pushed_all {
+            allocations_after_pushes += allocations;
+        }
+        let step = step.unwrap().unwrap();
         sent.push(step.velocity);
         q += step.velocity * dt;
     }
@@ -97,6 +110,7 @@ fn run_from(q1: f64, reserve: bool, parameters: ControllerParameters) -> Outcome
             .collect(),
         stacked: controller.stacked().to_vec(),
         sent,
+        allocations_after_pushes,
     }
 }
 
@@ -189,9 +203,10 @@ fn the_reserve_comes_in_as_soon_as_the_stack_drives_its_error_up() {
     // and nothing had settled yet (the settled test needs n_settle = 5 transition times).
     let after_push = escapes[0] - pushes[1];
     assert!((10..=12).contains(&after_push), "{:?}", early.events);
-    // No velocity jump at the escape (D1).
+    // No velocity jump at the escape (D1), and no heap allocation in the steps that test and make it.
     let k = escapes[0];
     assert!((early.sent[k] - early.sent[k - 1]).norm() < 1e-9);
+    assert_eq!(early.allocations_after_pushes, 0);
     // Joint 1 turned back before it got near the false equilibrium.
     assert!(
         lowest_q1(-0.3, &early) > -0.4,
