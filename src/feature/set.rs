@@ -98,9 +98,9 @@ impl FeatureSet {
 /// as one feature of 6 rows (row 5 an angle, rad): the values and rows of [`NormalizedCentroid`] (`x_n = a_n x_g`,
 /// `y_n = a_n y_g`), [`AreaNormalized`] (`a_n = Z* √(a*/a)`, \[M37\]), [`VispInvariants`] (`P_x = I1/I3²`,
 /// `P_y = I2/I3²`) and [`MomentOrientation`] (`α = ½ atan2(2μ11, μ20 − μ02)`), the same bits as the four stacked, with
-/// what they share computed once: the size `a = I3 = μ20 + μ02` and its row, `a_n` and `L_{a_n}` (one square root and
-/// one division instead of two of each), and the second-order terms `c1`, `s1`, `I1` with their rows (instead of
-/// three times). Errors come in the order of the parts (`a = 0` first, then isotropic moments for `α`).
+/// what they share computed once: the size `a = I3 = μ20 + μ02` and its row (instead of four times), `a_n` and
+/// `L_{a_n}` (a square root and two divisions, instead of twice), and the second-order terms `c1`, `s1`, `I1` with
+/// their rows (instead of three times). Errors come in the order of the parts (`a = 0` first, then isotropic moments for `α`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VispMoments {
     normalization: AreaNormalization,
