@@ -1,5 +1,6 @@
 //! Angle features: the paper's diagonal angle (task e2, \[M32\]–\[M33\], (F32), D8) and ViSP's moment orientation.
 
+use super::moments::Orientation;
 use super::{
     Feature, FeatureError, InteractionRow, InteractionSource, Observation, RELATIVE_TOLERANCE,
 };
@@ -124,11 +125,15 @@ impl MomentOrientation {
         obs: &Observation<'_>,
         _source: InteractionSource,
     ) -> Result<[(f64, InteractionRow); 1], FeatureError> {
-        let o = obs.moments()?.orientation_terms()?;
-        Ok([(
+        Ok([Self::pair(&obs.moments()?.orientation_terms()?)])
+    }
+
+    /// `(α, L_α)` from the second-order terms `o` already checked anisotropic ([`Orientation::anisotropic`]).
+    pub(super) fn pair(o: &Orientation) -> (f64, InteractionRow) {
+        (
             0.5 * o.s1.atan2(o.c1),
             (o.l_s1 * o.c1 - o.l_c1 * o.s1) / (2.0 * o.i1),
-        )])
+        )
     }
 }
 

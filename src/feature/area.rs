@@ -113,8 +113,13 @@ impl AreaNormalization {
     /// [`FeatureError::DegenerateArea`] when `a` vanishes.
     pub fn evaluate(&self, m: &Moments) -> Result<(f64, InteractionRow), FeatureError> {
         let (a, l_a) = m.size()?;
+        Ok(self.of_size(a, &l_a))
+    }
+
+    /// `a_n` and `L_{a_n}` as [`Self::evaluate`], from the size `a > 0` and its row `L_a` already at hand.
+    pub(super) fn of_size(&self, a: f64, l_a: &InteractionRow) -> (f64, InteractionRow) {
         let a_n = self.z_star * (self.a_star / a).sqrt();
-        Ok((a_n, l_a * (-a_n / (2.0 * a))))
+        (a_n, l_a * (-a_n / (2.0 * a)))
     }
 }
 
@@ -145,14 +150,23 @@ impl AreaNormalized {
     ) -> Result<[(f64, InteractionRow); 1], FeatureError> {
         let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
-        let row = match source {
+        Ok([(a_n, Self::row(m, a_n, l_an, source)?)])
+    }
+
+    /// The row of `a_n` in the form `source` asks for, from `a_n` and its exact row `l_an` ([`AreaNormalization`]).
+    pub(super) fn row(
+        m: &Moments,
+        a_n: f64,
+        l_an: InteractionRow,
+        source: InteractionSource,
+    ) -> Result<InteractionRow, FeatureError> {
+        Ok(match source {
             InteractionSource::PaperApprox => {
                 let (eps1, eps2) = epsilons(m)?;
                 InteractionRow::new(0.0, 0.0, -1.0, -a_n * eps1, a_n * eps2, 0.0)
             }
             InteractionSource::Exact | InteractionSource::Desired => l_an,
-        };
-        Ok([(a_n, row)])
+        })
     }
 }
 

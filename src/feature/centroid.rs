@@ -2,7 +2,7 @@
 
 use super::{
     point_interaction, positive_parameter, AreaNormalization, Feature, FeatureError,
-    InteractionRow, InteractionRows, InteractionSource, Observation,
+    InteractionRow, InteractionRows, InteractionSource, Moments, Observation,
 };
 
 /// Task e1 of the paper: the centroid `s = (x_g, y_g)` of the image points, \[M30\] (F30).
@@ -95,10 +95,19 @@ impl NormalizedCentroid {
     ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         let m = obs.moments()?;
         let (a_n, l_an) = self.normalization.evaluate(m)?;
-        Ok([
+        Ok(Self::pairs(m, a_n, &l_an))
+    }
+
+    /// `(x_n, L_{x_n})` and `(y_n, L_{y_n})` from `a_n` and `L_{a_n}` already at hand.
+    pub(super) fn pairs(
+        m: &Moments,
+        a_n: f64,
+        l_an: &InteractionRow,
+    ) -> [(f64, InteractionRow); 2] {
+        [
             (a_n * m.xg(), m.interaction_xg() * a_n + l_an * m.xg()),
             (a_n * m.yg(), m.interaction_yg() * a_n + l_an * m.yg()),
-        ])
+        ]
     }
 }
 

@@ -2,7 +2,8 @@
 
 use super::moments::Orientation;
 use super::{
-    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionSource, Observation,
+    AreaNormalization, Feature, FeatureError, InteractionRow, InteractionSource, Moments,
+    Observation,
 };
 
 /// Task e4 of the paper: `s = (P_x, P_y)` \[M40\] (F36), 2 rows (`ωx` against `υy`, `ωy` against `υx`):
@@ -99,7 +100,11 @@ impl VispInvariants {
         _source: InteractionSource,
     ) -> Result<[(f64, InteractionRow); 2], FeatureError> {
         let m = obs.moments()?;
-        let o = m.second_order_terms()?;
+        Ok(Self::pairs(m, &m.second_order_terms()?))
+    }
+
+    /// `(P_x, L_{P_x})` and `(P_y, L_{P_y})` from the second-order terms `o` of `m` already at hand.
+    pub(super) fn pairs(m: &Moments, o: &Orientation) -> [(f64, InteractionRow); 2] {
         let (c2, s2, l_c2, l_s2) = m.third_order_terms();
         let i2 = c2 * c2 + s2 * s2;
         let l_i2 = l_c2 * (2.0 * c2) + l_s2 * (2.0 * s2);
@@ -108,7 +113,7 @@ impl VispInvariants {
             let value = x * inv_i3_sq;
             (value, l_x * inv_i3_sq - o.l_i3 * (2.0 * value / o.i3))
         };
-        Ok([ratio(o.i1, o.l_i1), ratio(i2, l_i2)])
+        [ratio(o.i1, o.l_i1), ratio(i2, l_i2)]
     }
 }
 

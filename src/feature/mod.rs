@@ -50,6 +50,7 @@
 //! | [`NormalizedCentroid`] | 2 (x_n, y_n) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
 //! | [`MomentOrientation`] | 1 (angle) | ViSP, [peer scene variant B](crate::theory::peer_scene#variant-b) |
 //! | [`VispInvariants`] | 2 (P_x, P_y) | ViSP `vpMomentCInvariant`, [theory §7.6](crate::theory#s7-6) |
+//! | [`VispMoments`] | 6 | the four ViSP features above in one pass, variant B |
 //! | [`FeatureSet`] | sum | stacked features: the paper's four tasks, §7.7, variant B |
 //!
 //! ```
@@ -135,7 +136,7 @@ pub use centroid::{Centroid, NormalizedCentroid};
 pub use invariants::{PaperInvariants, VispInvariants};
 pub use moments::Moments;
 pub use point::{AllPoints, Point};
-pub use set::{BoxedFeature, FeatureSet};
+pub use set::{BoxedFeature, FeatureSet, VispMoments};
 pub use sides::SideRatios;
 
 use crate::camera::ImagePoint;

@@ -237,11 +237,7 @@ impl Moments {
     /// [`FeatureError::DegenerateArea`]; [`FeatureError::IsotropicMoments`] when `I1 ≤ RELATIVE_TOLERANCE · I3²`
     /// (D9: a square seen head-on).
     pub(super) fn orientation_terms(&self) -> Result<Orientation, FeatureError> {
-        let o = self.second_order_terms()?;
-        if o.i1 <= RELATIVE_TOLERANCE * o.i3 * o.i3 {
-            return Err(FeatureError::IsotropicMoments { i1: o.i1, i3: o.i3 });
-        }
-        Ok(o)
+        self.second_order_terms()?.anisotropic()
     }
 
     /// Third-order terms of \[M40\]: `c2 = μ03 − 3 μ21`, `s2 = μ30 − 3 μ12` and their rows.
@@ -268,6 +264,22 @@ pub(super) struct Orientation {
     pub l_s1: InteractionRow,
     pub l_i1: InteractionRow,
     pub l_i3: InteractionRow,
+}
+
+impl Orientation {
+    /// The terms themselves, for the features that divide by `I1` (see [`Moments::orientation_terms`]).
+    ///
+    /// # Errors
+    /// [`FeatureError::IsotropicMoments`] when `I1 ≤ RELATIVE_TOLERANCE · I3²` (D9).
+    pub(super) fn anisotropic(self) -> Result<Self, FeatureError> {
+        if self.i1 <= RELATIVE_TOLERANCE * self.i3 * self.i3 {
+            return Err(FeatureError::IsotropicMoments {
+                i1: self.i1,
+                i3: self.i3,
+            });
+        }
+        Ok(self)
+    }
 }
 
 #[cfg(test)]

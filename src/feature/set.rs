@@ -3,8 +3,8 @@
 
 use super::{
     check_dim, check_points, AreaNormalization, AreaNormalized, Centroid, DiagonalAngle, Feature,
-    FeatureError, InteractionRows, InteractionSource, MomentOrientation, NormalizedCentroid,
-    Observation, PaperInvariants, VispInvariants,
+    FeatureError, InteractionRow, InteractionRows, InteractionSource, MomentOrientation,
+    NormalizedCentroid, Observation, PaperInvariants, VispInvariants,
 };
 
 /// A boxed feature that a [`FeatureSet`] can hold and share across threads.
@@ -76,13 +76,9 @@ impl FeatureSet {
 
     /// ViSP's moment vector of [peer scene variant B](crate::theory::peer_scene#variant-b): `s = (x_n, y_n, a_n, P_x, P_y, α)` with ViSP's definitions
     /// ([`NormalizedCentroid`], [`AreaNormalized`], [`VispInvariants`], [`MomentOrientation`]); row 5 an angle.
+    /// One part, [`VispMoments`], which evaluates the four in one pass over their shared terms.
     pub fn visp_moments(normalization: AreaNormalization) -> Self {
-        Self::new(vec![
-            Box::new(NormalizedCentroid::new(normalization)),
-            Box::new(AreaNormalized::new(normalization)),
-            Box::new(VispInvariants),
-            Box::new(MomentOrientation),
-        ])
+        Self::new(vec![Box::new(VispMoments::new(normalization))])
     }
 
     /// The feature owning stacked row `row` and the row's index inside it.
@@ -96,6 +92,58 @@ impl FeatureSet {
         }
         None
     }
+}
+
+/// ViSP's moment vector `s = (x_n, y_n, a_n, P_x, P_y, α)` of [peer scene variant B](crate::theory::peer_scene#variant-b)
+/// as one feature of 6 rows (row 5 an angle, rad): the values and rows of [`NormalizedCentroid`] (`x_n = a_n x_g`,
+/// `y_n = a_n y_g`), [`AreaNormalized`] (`a_n = Z* √(a*/a)`, \[M37\]), [`VispInvariants`] (`P_x = I1/I3²`,
+/// `P_y = I2/I3²`) and [`MomentOrientation`] (`α = ½ atan2(2μ11, μ20 − μ02)`), the same bits as the four stacked, with
+/// what they share computed once: the size `a = I3 = μ20 + μ02` and its row (instead of four times), `a_n` and
+/// `L_{a_n}` (a square root and two divisions, instead of twice), and the second-order terms `c1`, `s1`, `I1` with
+/// their rows (instead of three times). Errors come in the order of the parts (`a = 0` first, then isotropic moments for `α`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VispMoments {
+    normalization: AreaNormalization,
+}
+
+impl VispMoments {
+    /// The vector with the normalisation `(Z*, a*)` of its `x_n`, `y_n` and `a_n`.
+    pub fn new(normalization: AreaNormalization) -> Self {
+        Self { normalization }
+    }
+
+    /// The six `(value, row)` pairs; the row of `a_n` in the form `source` asks for (the others are exact whatever the
+    /// source), as [`AreaNormalized`].
+    fn evaluate(
+        &self,
+        obs: &Observation<'_>,
+        source: InteractionSource,
+    ) -> Result<[(f64, InteractionRow); 6], FeatureError> {
+        let m = obs.moments()?;
+        let o = m.second_order_terms()?;
+        let (a_n, l_an) = self.normalization.of_size(o.i3, &o.l_i3);
+        let [x_n, y_n] = NormalizedCentroid::pairs(m, a_n, &l_an);
+        let area = (a_n, AreaNormalized::row(m, a_n, l_an, source)?);
+        let [p_x, p_y] = VispInvariants::pairs(m, &o);
+        let alpha = MomentOrientation::pair(&o.anisotropic()?);
+        Ok([x_n, y_n, area, p_x, p_y, alpha])
+    }
+}
+
+impl Feature for VispMoments {
+    fn name(&self) -> &'static str {
+        "ViSP moment vector"
+    }
+    fn dim(&self) -> usize {
+        6
+    }
+    fn is_angle(&self, row: usize) -> bool {
+        row == 5
+    }
+    fn min_points(&self) -> usize {
+        2
+    }
+    writes_from_one_evaluation!(Self::evaluate);
 }
 
 impl Feature for FeatureSet {
@@ -208,6 +256,53 @@ mod tests {
             let parts: Vec<f64> = tasks.iter().flat_map(|t| scene.value(t, plane)).collect();
             prop_assert_eq!(s, parts);
         }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// The one-pass ViSP vector writes the same bits as its four parts stacked, for every source, by each entry
+        /// point; and its errors come in the parts' order.
+        #[test]
+        fn visp_vector_is_its_parts(pose in tilted_pose_strategy(), plane in any::<bool>()) {
+            let n = AreaNormalization::new(0.5, 0.05).unwrap();
+            let parts = FeatureSet::new(vec![
+                Box::new(NormalizedCentroid::new(n)),
+                Box::new(AreaNormalized::new(n)),
+                Box::new(VispInvariants),
+                Box::new(MomentOrientation),
+            ]);
+            let fused = FeatureSet::visp_moments(n);
+            let scene = Scene::new(pose, rectangle(0.2, 0.1));
+            prop_assert_eq!(scene.value(&fused, plane), scene.value(&parts, plane));
+            let (points, target_plane) = scene.image();
+            let obs = Observation::new(&points, plane.then_some(&target_plane)).unwrap();
+            for source in [InteractionSource::Exact, InteractionSource::PaperApprox, InteractionSource::Desired] {
+                prop_assert_eq!(scene.interaction(&fused, source, plane), scene.interaction(&parts, source, plane));
+                let one_pass = |f: &FeatureSet| {
+                    let (mut s, mut l) = ([0.0; 6], Rows::zeros(6));
+                    f.value_and_interaction(&obs, source, &mut s, l.rows_mut(0, 6)).unwrap();
+                    (s, l)
+                };
+                prop_assert_eq!(one_pass(&fused), one_pass(&parts));
+            }
+        }
+    }
+
+    #[test]
+    fn visp_vector_errors_in_the_parts_order() {
+        let n = AreaNormalization::new(0.5, 0.05).unwrap();
+        let fused = FeatureSet::visp_moments(n);
+        let mut s = [0.0; 6];
+        let same = [ImagePoint::new(0.1, 0.1, 1.0); 3];
+        assert!(matches!(
+            fused.value(&Observation::new(&same, None).unwrap(), &mut s),
+            Err(FeatureError::DegenerateArea { .. })
+        ));
+        let square = rectangle_points_fronto(0.1, 0.1, 0.5);
+        assert!(matches!(
+            fused.value(&Observation::new(&square, None).unwrap(), &mut s),
+            Err(FeatureError::IsotropicMoments { .. })
+        ));
     }
 
     #[test]

@@ -254,10 +254,12 @@ fn mul_row_to<const K: usize, const N: usize, R, SO>(
     }
 }
 
-/// `Σ_k row_k c_k`, summed in the order of `k`.
+/// `Σ_k row_k c_k`, summed in the order of `k`, from `−0`: the identity of floating-point addition (`−0 + p = p` for
+/// every `p`), so the compiler drops the first addition, which a start at `+0` keeps (`+0 + (−0) = +0`); the sum
+/// differs only in the sign of a zero.
 #[inline(always)]
 fn dot_array<const K: usize>(row: &[f64; K], column: &[f64]) -> f64 {
     row.iter()
         .zip(column.iter())
-        .fold(0.0, |sum, (a, b)| sum + a * b)
+        .fold(-0.0, |sum, (a, b)| sum + a * b)
 }
