@@ -140,6 +140,24 @@ fn runs_that_settle_away_from_the_goal_are_not_counted_as_converged() {
     );
 }
 
+/// The full method's outcome on each of `draws` draws of one family of a 6-joint scenario.
+fn full_method_outcomes(
+    scenario: &Scenario,
+    family: &str,
+    draws: usize,
+    seed: u64,
+) -> Vec<&'static str> {
+    let study = Study::new(scenario, families(&[family]), draws, seed)
+        .unwrap()
+        .with_methods(&[RunKind::StackController]);
+    let result = study.run::<6>().unwrap();
+    result.families[0]
+        .draws
+        .iter()
+        .map(|d| d.methods[0].outcome)
+        .collect()
+}
+
 /// D23: on the Afma6 with the desired view turned by up to 10°, the paper's features settle off the goal in some
 /// draws; with the image points in reserve (the default) the full method leaves those false equilibria and reaches
 /// the goal, and no draw that converges without the reserve task is lost with it.
@@ -148,17 +166,7 @@ fn the_reserve_task_leads_turned_views_off_their_false_equilibria() {
     let with_escape = scenario("paper_afma6");
     let mut without = with_escape.clone();
     without.controller.escape_error = f64::INFINITY;
-    let outcomes = |scenario: &Scenario| -> Vec<&'static str> {
-        let study = Study::new(scenario, families(&["view_10deg"]), 24, 4)
-            .unwrap()
-            .with_methods(&[RunKind::StackController]);
-        let result = study.run::<6>().unwrap();
-        result.families[0]
-            .draws
-            .iter()
-            .map(|d| d.methods[0].outcome)
-            .collect()
-    };
+    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "view_10deg", 24, 4);
     let (with_escape, without) = (outcomes(&with_escape), outcomes(&without));
     let off_goal = without.iter().filter(|&&o| o == "off_goal").count();
     assert!(
@@ -191,12 +199,11 @@ fn the_early_escape_keeps_uniform_starts_off_the_false_equilibria() {
     let early = scenario("paper_afma6");
     let mut late = early.clone();
     late.controller.escape_growth_rate = f64::INFINITY;
-    let converged = |scenario: &Scenario| -> usize {
-        let study = Study::new(scenario, families(&["uniform"]), 20, 7)
-            .unwrap()
-            .with_methods(&[RunKind::StackController]);
-        let result = study.run::<6>().unwrap();
-        result.families[0].methods[0].converged
+    let converged = |scenario: &Scenario| {
+        full_method_outcomes(scenario, "uniform", 20, 7)
+            .iter()
+            .filter(|&&o| o == "converged")
+            .count()
     };
     let (early, late) = (converged(&early), converged(&late));
     assert!(
