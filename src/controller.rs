@@ -40,10 +40,11 @@
 //!    **guard** cost (a removal must not make the guard's prediction worse: in the simulation, the visibility of the
 //!    target, so that removing the centroid cannot let the target leave the image) is removed. When no candidate
 //!    qualifies, nothing is removed: the controller then behaves as the stack with projected gradient, which is
-//!    what "never worse than stack + gradient" needs. A part of the cost that the `h_max` test cannot see — a joint
-//!    whose cost alone at its limit, `ρ² Δq / 2`, is below `h_max` ([`Cost::forbids_unseen`]) — triggers a removal
-//!    as the last resort below does: when the prediction `max(T, 1/μ)` ahead is past its limit (the candidates are
-//!    compared on that prediction). Seen only `T` ahead, the removal came too late for the change to act.
+//!    what "never worse than stack + gradient" needs. A hard limit is also watched as the last resort below watches
+//!    it: when the prediction `max(T, 1/μ)` ahead is past a hard limit ([`Cost::forbids`]), a removal is made (the
+//!    candidates are compared on that prediction). Seen only `T` ahead — when `h_max` cannot see the joint at all (its
+//!    cost at the limit, `ρ² Δq / 2`, is below `h_max`), or when it moves so fast that the change, which needs about
+//!    `1/μ` to act, starts too late — the removal came too late.
 //! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`; for a push with no
 //!    task out, when removals are allowed, `ε_add` is [`ControllerParameters::settle_velocity_with_removal`], 0.1 by
 //!    default against the paper's 0.01, so that the next task is pushed before the higher ones have quite converged):
@@ -483,8 +484,8 @@ pub struct RemovalReport {
     pub threshold: f64,
     /// The predicted cost with the task removed (smaller than `predicted_cost` under [`DecisionRule::Robust`]).
     pub predicted_cost_without: f64,
-    /// The prediction horizon (s): `T`, or `max(T, n_resort/μ)` for the last resort of D13 and for a joint the
-    /// threshold cannot see (D6, [`Cost::forbids_unseen`]).
+    /// The prediction horizon (s): `T`, or `max(T, n_resort/μ)` for the last resort of D13 and for a hard limit
+    /// predicted to be crossed within it (D6, [`Cost::forbids`]).
     pub horizon: f64,
     /// The joint with the largest component of the gradient `∇h(q̂)` predicted `T` ahead (0-based).
     pub joint: usize,
@@ -1165,7 +1166,7 @@ impl<const N: usize> StackController<N> {
         }
         // After the fallback, only the last resort of D13: the law is about to cross a hard limit (or lose the target)
         // within the time a removal needs to act, `max(T, n_resort/μ)`. Before it, the `h_max` test of D6, and the
-        // same hard-limit check for the parts of the cost that the `h_max` test cannot see (D6).
+        // same hard-limit check (D6): the `h_max` test looks `T` ahead only.
         let far = horizon.max(LAST_RESORT_TRANSITIONS / law.transition_gain());
         let (trigger, removal_horizon, reference) = if self.fallback {
             let far_value = self.predicted_value(cost, &prediction.at(output.law(), far))?;
@@ -1173,7 +1174,7 @@ impl<const N: usize> StackController<N> {
             (imminent, far, f64::INFINITY)
         } else if !danger_predicted
             && self.parameters.rule == DecisionRule::Robust
-            && cost.forbids_unseen(&prediction.at(output.law(), far), threshold)
+            && cost.forbids(&prediction.at(output.law(), far))
         {
             (true, far, f64::INFINITY)
         } else {

@@ -830,3 +830,37 @@ fn a_joint_the_threshold_cannot_see_is_watched_one_transition_ahead() {
     assert!(run.first(EventKind::Remove, 1).is_some(), "reach removed");
     run.assert_limits_kept_until_fallback();
 }
+
+/// D6, a joint the `h_max` test sees, but too late: with every task at gain 0.2 s⁻¹ (so `μ = 2` s⁻¹: a change takes
+/// about 0.5 s to act), "reach" drives joint 0 towards a goal at 2, 3 or 4, beyond its limit at 1, entering the band at
+/// `0.2 (goal − 0.8)` = 0.24, 0.44, 0.64 rad/s. The `h_max` test fires when the prediction `T` ahead is half-way
+/// through the band (0.1 from the limit), and the motion still to come after a removal is about `v/μ`: above `v = 0.1 /
+/// (1/μ − T)` (0.22 rad/s) it comes late, and at 0.64 rad/s joint 0 crosses its limit 32 periods after the removal.
+/// Watched one transition ahead for a hard limit as well, the limit is kept until the fallback in all three. (Faster
+/// still, at 1.04 rad/s, neither keeps it: the prediction one transition ahead covers `1 − e^{−1}` of the motion to
+/// come, and a velocity limit, not a removal, is what keeps such a joint.)
+#[test]
+fn a_fast_joint_is_watched_one_transition_ahead() {
+    let row = |c: usize| TaskJacobian::<3>::from_fn(1, |_, k| if k == c { 1.0 } else { 0.0 });
+    let slow =
+        |name, c, target: JointVector<3>| LinearTask::new(name, row(c), target, 0.2).unwrap();
+    for goal in [2.0, 3.0, 4.0] {
+        let tasks = vec![
+            slow("hold", 2, JointVector::zeros()),
+            slow("reach", 0, JointVector::<3>::new(goal, 0.0, 0.0)),
+            slow("side", 1, JointVector::<3>::new(0.0, 0.3, 0.0)),
+        ];
+        let run = run_tasks(
+            tasks,
+            JointVector::<3>::new(0.2, -0.2, 0.1),
+            ControllerParameters::default(),
+            1.0,
+            4000,
+        );
+        assert!(
+            run.first(EventKind::Remove, 1).is_some(),
+            "goal {goal}: reach removed"
+        );
+        run.assert_limits_kept_until_fallback();
+    }
+}

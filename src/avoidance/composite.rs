@@ -146,13 +146,6 @@ impl<const N: usize> Cost<N> for CompositeCost<'_, N> {
     fn forbids(&self, q: &JointVector<N>) -> bool {
         self.terms.iter().any(|term| term.forbids(q))
     }
-
-    /// Whether any term forbids `q` unseen by `threshold`.
-    fn forbids_unseen(&self, q: &JointVector<N>, threshold: f64) -> bool {
-        self.terms
-            .iter()
-            .any(|term| term.forbids_unseen(q, threshold))
-    }
 }
 
 #[cfg(test)]
@@ -214,11 +207,5 @@ mod tests {
         assert!(sum.forbids(&Vector2::new(0.0, 0.51)));
         assert!(sum.forbids(&Vector2::new(-1.01, 0.0)));
         assert!(!CompositeCost::<2>::new().forbids(&Vector2::new(5.0, 5.0)));
-        // Unseen by a threshold: b's joint 1 (range 1, ρ = 0.2) costs ½ · 0.2² / 1 = 0.02 at its limit, a's joint 0
-        // (range 2, ρ = 0.1) ½ · 0.2² / 2 = 0.01.
-        let (b_past, a_past) = (Vector2::new(0.0, 0.51), Vector2::new(-1.01, 0.0));
-        assert!(sum.forbids_unseen(&b_past, 0.03) && sum.forbids_unseen(&a_past, 0.03));
-        assert!(!sum.forbids_unseen(&b_past, 0.015) && sum.forbids_unseen(&a_past, 0.015));
-        assert!(!sum.forbids_unseen(&b_past, 0.005) && !sum.forbids_unseen(&a_past, 0.005));
     }
 }

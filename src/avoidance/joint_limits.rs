@@ -123,8 +123,9 @@ impl<const N: usize> JointLimits<N> {
     }
 
     /// The value of `h` when one joint, `joint`, is at its hard limit and every other joint is in the acceptable box:
-    /// `½ (ρΔq)² / Δq = ρ² Δq / 2`. A removal threshold `h_max` above it cannot see that joint reach its limit
-    /// ([`Cost::forbids_unseen`]). `None` for a joint index `≥ N` and for an unlimited joint.
+    /// `½ (ρΔq)² / Δq = ρ² Δq / 2`. A removal threshold `h_max` above it cannot see that joint reach its limit: the
+    /// stack controller watches the hard limits themselves too ([`Cost::forbids`], [D6](crate::theory#d6)). `None`
+    /// for a joint index `≥ N` and for an unlimited joint.
     pub fn limit_cost(&self, joint: usize) -> Option<f64> {
         (joint < N && !self.is_unlimited(joint))
             .then(|| 0.5 * self.rho * self.rho * self.range(joint))
@@ -183,15 +184,6 @@ impl<const N: usize> Cost<N> for JointLimits<N> {
     /// A joint outside its hard limits ([`JointLimits::violated_joint`]).
     fn forbids(&self, q: &JointVector<N>) -> bool {
         self.violated_joint(q).is_some()
-    }
-
-    /// A joint outside its hard limits whose [`JointLimits::limit_cost`] is below `threshold`.
-    fn forbids_unseen(&self, q: &JointVector<N>, threshold: f64) -> bool {
-        (0..N).any(|i| {
-            self.limit_cost(i)
-                .is_some_and(|at_limit| at_limit < threshold)
-                && self.is_outside(q, i)
-        })
     }
 
     /// [\[M20\]](crate::theory#m20).
@@ -324,10 +316,9 @@ mod tests {
         }
     }
 
-    /// A short joint's cost at its limit, `½ (ρΔq)² / Δq`, computed by hand; the joint is "unseen" by a threshold
-    /// above that value only, and only beyond its hard limit.
+    /// A short joint's cost at its limit, `½ (ρΔq)² / Δq`, computed by hand; forbidden only beyond its hard limit.
     #[test]
-    fn a_short_joint_is_unseen_by_a_threshold_above_its_cost_at_the_limit() {
+    fn a_short_joint_costs_little_at_its_limit_and_is_forbidden_beyond_it() {
         let inf = f64::INFINITY;
         // A 0.3 m slide, a 2 rad joint and an unlimited one; ρ = 0.1: at the limit, 0.5 · 0.03² / 0.3 = 1.5e-3 and
         // 0.5 · 0.2² / 2 = 1e-2.
@@ -348,15 +339,8 @@ mod tests {
             JointVector::<3>::new(0.31, 0.0, 1e6),
             JointVector::<3>::new(0.1, 1.01, 0.0),
         );
-        for threshold in [2.5e-3, 5e-3] {
-            assert!(limits.forbids_unseen(&slide_past, threshold));
-            assert!(!limits.forbids_unseen(&joint_past, threshold));
-            assert!(!limits.forbids_unseen(&at_limit, threshold));
-        }
-        // Above the 2 rad joint's cost at its limit, that joint is unseen too; below the slide's, neither is.
-        assert!(limits.forbids_unseen(&joint_past, 2e-2));
-        assert!(!limits.forbids_unseen(&slide_past, 1e-3));
-        assert!(!limits.forbids_unseen(&joint_past, 1e-3));
+        assert!(limits.forbids(&slide_past) && limits.forbids(&joint_past));
+        assert!(!limits.forbids(&at_limit));
     }
 
     #[test]

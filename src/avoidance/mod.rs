@@ -273,14 +273,6 @@ pub trait Cost<const N: usize> {
         let _ = q;
         false
     }
-
-    /// Whether `q` lies beyond a hard limit of a part of the cost whose value stays below `threshold` all the way to
-    /// that limit: a danger that the test `h(q̂) > threshold` cannot see. For [`JointLimits`], a joint outside its
-    /// limits whose cost alone at its limit, `ρ² Δq / 2`, is below `threshold` ([D6](crate::theory#d6)). Default: `false`.
-    fn forbids_unseen(&self, q: &JointVector<N>, threshold: f64) -> bool {
-        let _ = (q, threshold);
-        false
-    }
 }
 
 /// A reference to a cost is the same cost (so a [`CompositeCost`] can hold borrowed terms).
@@ -311,10 +303,6 @@ impl<const N: usize, C: Cost<N> + ?Sized> Cost<N> for &C {
 
     fn forbids(&self, q: &JointVector<N>) -> bool {
         (**self).forbids(q)
-    }
-
-    fn forbids_unseen(&self, q: &JointVector<N>, threshold: f64) -> bool {
-        (**self).forbids_unseen(q, threshold)
     }
 }
 
