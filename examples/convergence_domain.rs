@@ -226,6 +226,8 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
                 "any_baseline_converged": f.any_baseline_converged,
                 "full_method_also_converged": f.full_method_also_converged,
                 "full_method_worse_than_stack_gradient": f.full_method_worse_than_stack_gradient,
+                "baseline_wins_at_limit": f.baseline_wins_at_limit,
+                "full_method_also_converged_at_limit": f.full_method_also_converged_at_limit,
             })
         })
         .collect();

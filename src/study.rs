@@ -200,6 +200,10 @@ pub struct MethodResult {
     pub camera_translation_error: f64,
     /// The camera's rotation to its goal at the end (degrees).
     pub camera_rotation_error_deg: f64,
+    /// The smallest distance of a joint to its nearest hard limit over the run, as a fraction of the joint's range.
+    pub min_normalized_margin: f64,
+    /// The configuration at the end of the run (m or rad per joint).
+    pub end: Vec<f64>,
     /// The reason of a `stalled` or `max_iterations` outcome.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
@@ -210,7 +214,19 @@ impl MethodResult {
     pub fn converged(&self) -> bool {
         self.outcome == "converged"
     }
+
+    /// `true` when the run converged, at some time within [`AT_LIMIT_MARGIN`] of a hard limit.
+    pub fn converged_at_limit(&self) -> bool {
+        self.converged() && self.min_normalized_margin < AT_LIMIT_MARGIN
+    }
 }
+
+/// A run that came closer than this fraction of a joint's range to one of its hard limits touched it: on the UR5e's
+/// ±2π joints 0.013 rad. Such a run converges with no room left: a tracking error or a measurement error of that size
+/// would have taken the joint past its limit. The classical law does so when a copy of its goal configuration lies on
+/// a limit (on the UR5e, a wrist or base joint's goal at 0 and its copy at 2π, which it approaches without crossing).
+/// The study reports these wins apart ([`FamilyResult::baseline_wins_at_limit`]); they still count as wins.
+pub const AT_LIMIT_MARGIN: f64 = 1e-3;
 
 /// One draw: its situation and what each method did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -225,6 +241,19 @@ pub struct DrawResult {
     pub goal: Vec<f64>,
     /// One result per method, in the study's order.
     pub methods: Vec<MethodResult>,
+}
+
+impl DrawResult {
+    /// `true` when a baseline (a method other than the full one) converged on this draw, and every baseline that
+    /// converged touched a hard limit on the way ([`MethodResult::converged_at_limit`]).
+    pub fn baselines_converged_only_at_limit(&self) -> bool {
+        let mut baselines = self
+            .methods
+            .iter()
+            .filter(|m| m.method != RunKind::StackController && m.converged())
+            .peekable();
+        baselines.peek().is_some() && baselines.all(MethodResult::converged_at_limit)
+    }
 }
 
 /// Per method, over a family.
@@ -272,6 +301,11 @@ pub struct FamilyResult {
     pub full_method_also_converged: usize,
     /// Draws where the stack with gradient converged and the full method did not.
     pub full_method_worse_than_stack_gradient: usize,
+    /// Of the draws where a baseline converged, those where every baseline that converged touched a hard limit on the
+    /// way ([`MethodResult::converged_at_limit`]).
+    pub baseline_wins_at_limit: usize,
+    /// Of those, draws where the full method converged too.
+    pub full_method_also_converged_at_limit: usize,
     /// Every draw.
     pub draws: Vec<DrawResult>,
 }
@@ -553,6 +587,7 @@ impl<'a> Study<'a> {
                 .iter()
                 .any(|m| m.method != RunKind::StackController && m.converged())
         };
+        let only_at_limit = DrawResult::baselines_converged_only_at_limit;
         let methods = self
             .methods
             .iter()
@@ -601,6 +636,11 @@ impl<'a> Study<'a> {
             full_method_worse_than_stack_gradient: draws
                 .iter()
                 .filter(|d| converged(d, stack_gradient) && full.is_some() && !converged(d, full))
+                .count(),
+            baseline_wins_at_limit: draws.iter().filter(|d| only_at_limit(d)).count(),
+            full_method_also_converged_at_limit: draws
+                .iter()
+                .filter(|d| only_at_limit(d) && converged(d, full))
                 .count(),
             draws,
         }
@@ -740,6 +780,8 @@ fn method_result<const N: usize>(
         max_velocity_step: run.max_velocity_step(),
         camera_translation_error,
         camera_rotation_error_deg,
+        min_normalized_margin: run.min_normalized_margin(),
+        end: q_end.iter().copied().collect(),
         reason,
     })
 }
@@ -777,8 +819,8 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
-            "removals", "per task", "fallback", "covered", "worse", "off goal", "pose"
+            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
+            "removals", "per task", "fallback", "covered", "at limit", "worse", "off goal", "pose"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -791,13 +833,17 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9}",
+                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
                 format!(
                     "{}/{}",
                     family.full_method_also_converged, family.any_baseline_converged
+                ),
+                format!(
+                    "{}/{}",
+                    family.full_method_also_converged_at_limit, family.baseline_wins_at_limit
                 ),
                 family.full_method_worse_than_stack_gradient,
                 full.map_or("-".into(), |m| m
@@ -815,9 +861,11 @@ impl std::fmt::Display for StudyResult {
             f,
             "removals: median per run of the full method; per task: median over runs of the most removals of one task; \
              covered: draws where the full method converged among those \
-             where a baseline did; worse: draws where stack_gradient converged and the full method did not; off goal: \
+             where a baseline did; at limit: of those, the draws where every baseline that converged came within \
+             {} of a joint's range of a hard limit on the way (covered/of them); worse: draws where stack_gradient converged and the full method did not; off goal: \
              runs of the full method whose task errors settled with the camera away from its goal pose (not \
              converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal",
+            AT_LIMIT_MARGIN,
             POSE_TOLERANCE_M * 1e3,
             POSE_TOLERANCE_DEG
         )?;
@@ -827,5 +875,58 @@ impl std::fmt::Display for StudyResult {
             "{} control iterations in {:.1} s on {} threads ({:.0} iterations/s)",
             self.iterations, self.seconds, self.threads, rate
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(method: RunKind, outcome: &'static str, min_normalized_margin: f64) -> MethodResult {
+        MethodResult {
+            method,
+            outcome,
+            iterations: 100,
+            removals: 0,
+            max_removals_of_a_task: 0,
+            fallback: false,
+            max_velocity_step: 0.0,
+            camera_translation_error: 0.0,
+            camera_rotation_error_deg: 0.0,
+            min_normalized_margin,
+            end: vec![0.0; 6],
+            reason: None,
+        }
+    }
+
+    fn draw(methods: Vec<MethodResult>) -> DrawResult {
+        DrawResult {
+            draw: 0,
+            rejected: 0,
+            start: vec![0.0; 6],
+            goal: vec![0.0; 6],
+            methods,
+        }
+    }
+
+    /// A win at a limit is a converged run whose margin fell below `AT_LIMIT_MARGIN`; a draw counts apart only when
+    /// every baseline that converged did so, and the full method's own margin plays no part.
+    #[test]
+    fn a_draw_is_won_only_at_a_limit_when_every_converged_baseline_touched_one() {
+        use RunKind::{Classical, StackController, StackGradient};
+        assert!(result(Classical, "converged", 5e-4).converged_at_limit());
+        assert!(!result(Classical, "converged", 2e-3).converged_at_limit());
+        assert!(!result(Classical, "joint_limit", 0.0).converged_at_limit());
+        let at_limit = result(Classical, "converged", 0.0);
+        let clean = result(StackGradient, "converged", 0.05);
+        let failed = result(StackGradient, "joint_limit", 0.0);
+        let full = result(StackController, "converged", 0.0);
+        assert!(draw(vec![at_limit.clone(), failed.clone(), full.clone()])
+            .baselines_converged_only_at_limit());
+        assert!(
+            !draw(vec![at_limit.clone(), clean, full.clone()]).baselines_converged_only_at_limit()
+        );
+        let failed_classical = result(Classical, "joint_limit", 0.0);
+        assert!(!draw(vec![failed_classical, failed, full]).baselines_converged_only_at_limit());
     }
 }
