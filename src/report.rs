@@ -7,7 +7,7 @@
 //! {"scenario": str, "runs": [{"name": str,
 //!   "outcome": "converged"|"off_goal"|"joint_limit"|"feature_lost"|"max_iterations"|"stalled"|…,
 //!   "reason": str|null, "iterations": int, "joint": int|null, "stacked_at_end": [task names],
-//!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback", "task": str,
+//!   "events": [{"iteration": int, "kind": "push"|"remove"|"reinsert"|"fallback"|"escape"|"hold", "task": str,
 //!               "law_jump": float, "jump": float, "max_step_after": float}],
 //!   "max_velocity_jump": float, "max_velocity_step": float, "max_acceleration": float,
 //!   "final_error_norm": float|null, "min_normalized_margin": float}]}

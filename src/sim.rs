@@ -478,7 +478,8 @@ pub enum Outcome {
         /// What the run was doing (the task errors at the end).
         reason: String,
     },
-    /// The iteration budget ran out while a task was removed or waiting to be pushed (D13): the run names it and why.
+    /// The iteration budget ran out while a task was removed or waiting to be pushed, or the controller held before a
+    /// hard limit and the robot came to rest (D13): the run names the task and why.
     Stalled {
         /// The task that waited (index into the task list).
         task: usize,
@@ -908,7 +909,8 @@ fn believed_camera_jacobian<const N: usize>(
     Ok(believed.camera_jacobian(state.tip_jacobian()))
 }
 
-/// How a run that used its whole budget ended: stalled on a task that could not come in (D13), or still converging.
+/// How a run that used its whole budget ended — stalled on a task that could not come in (D13), or still converging —
+/// or one whose controller held (D13) once the robot is at rest.
 fn budget_outcome<const N: usize>(
     controller: &StackController<N>,
     task_names: &[String],
@@ -943,6 +945,15 @@ fn budget_outcome<const N: usize>(
                 "{} was never pushed: the stack did not settle (‖q̇_n‖ = {stack_velocity_norm:.2e} at the end; task \
                  errors: {error_list})",
                 task_names[next]
+            ),
+        },
+        ControllerStatus::Held { task, time } => Outcome::Stalled {
+            task,
+            reason: format!(
+                "held at t = {time:.2} s: after the fallback a hard limit lay one transition ahead and no task could be \
+                 removed, so every task was dropped from {} on and the robot kept inside its limits (task errors: \
+                 {error_list})",
+                task_names[task]
             ),
         },
         ControllerStatus::Complete => Outcome::MaxIterations {
@@ -1269,6 +1280,10 @@ pub fn simulate_with<const N: usize>(
         totals.add(record, &scene.limits, events);
         Ok::<_, SimError>(())
     };
+    let task_names: Vec<String> = tasks
+        .iter()
+        .map(|t| Task::<N, VisualContext<'_, N>>::name(t).to_owned())
+        .collect();
     let mut outcome = None;
     // The time the task errors went below the convergence threshold and have stayed there since.
     let mut below_since: Option<f64> = None;
@@ -1433,6 +1448,13 @@ pub fn simulate_with<const N: usize>(
                 distance,
                 stacked: record.stacked.clone(),
             }),
+            // A held controller (D13) has given up: the run ends once the avoidance has brought the robot to rest.
+            (None, None)
+                if matches!(controller.status(), ControllerStatus::Held { .. })
+                    && velocity.norm() < controller.parameters().settle_velocity =>
+            {
+                Some(budget_outcome(&controller, &task_names, Some(&record)))
+            }
             (None, None) => None,
         };
         keep(&mut totals, log, record, controller.events())?;
@@ -1441,10 +1463,6 @@ pub fn simulate_with<const N: usize>(
             break;
         }
     }
-    let task_names: Vec<String> = tasks
-        .iter()
-        .map(|t| Task::<N, VisualContext<'_, N>>::name(t).to_owned())
-        .collect();
     let outcome = match outcome {
         Some(outcome) => outcome,
         None => budget_outcome(&controller, &task_names, totals.last.as_ref()),

@@ -3,8 +3,8 @@
 
 use servostack::avoidance::{CompositeCost, Cost, CostError, JointLimits};
 use servostack::controller::{
-    ControllerError, ControllerParameters, DecisionRule, EventKind, RemovalCriterion,
-    StackController,
+    ControllerError, ControllerParameters, ControllerStatus, DecisionRule, EventKind,
+    RemovalCriterion, StackController,
 };
 use servostack::law::ControlLaw;
 use servostack::linalg::{null_space_projector, RankPolicy};
@@ -58,6 +58,8 @@ struct Run {
     sent: Vec<JointVector<3>>,
     laws: Vec<JointVector<3>>,
     mu: f64,
+    /// The controller's status at the end.
+    status: ControllerStatus,
 }
 
 impl Run {
@@ -187,6 +189,7 @@ fn run_guarded(
         sent,
         laws,
         mu: law.transition_gain(),
+        status: controller.status(),
     }
 }
 
@@ -245,7 +248,11 @@ fn push_only_with_avoidance_hits_the_limit() {
 /// re-insertion by the test, and the limit is never hit while the task is out.
 #[test]
 fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_resort_removals() {
-    let parameters = ControllerParameters::default();
+    // Without the hold (the test below), to see where the fallback's law goes.
+    let parameters = ControllerParameters {
+        hold_before_limit: false,
+        ..Default::default()
+    };
     let run = run(parameters, 1.0);
     let removals: Vec<(usize, usize)> = run
         .events
@@ -302,6 +309,40 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
     assert!(run
         .hit
         .is_some_and(|(joint, k)| joint == 0 && k > last_back));
+    assert_continuous_at_events(&run, 0.01);
+}
+
+/// The same unachievable task with the default `hold_before_limit`: where the run above reaches the limit once its last
+/// resorts are spent, the controller drops every task instead (D13 hold), the law is the avoidance alone, and the
+/// limit is kept to the end of the 40 s. Without the hold the same run crosses it (the test above).
+#[test]
+fn holding_keeps_the_limit_an_unachievable_task_would_cross() {
+    let parameters = ControllerParameters::default();
+    assert!(parameters.hold_before_limit);
+    let run = run(parameters, 1.0);
+    assert_eq!(run.hit, None, "events: {:?}", run.events);
+    let holds: Vec<usize> = run
+        .events
+        .iter()
+        .filter(|e| e.1 == EventKind::Hold)
+        .map(|e| e.0)
+        .collect();
+    assert_eq!(holds.len(), 1, "events: {:?}", run.events);
+    // The hold comes after the fallback and the last resorts: "reach" removed twice, back after its dwell.
+    let hold = holds[0];
+    assert!(run.first(EventKind::Fallback, 1).is_some_and(|k| k < hold));
+    let removals_before = run
+        .events
+        .iter()
+        .filter(|e| e.1 == EventKind::Remove && e.0 < hold)
+        .count();
+    assert_eq!(removals_before, 2, "events: {:?}", run.events);
+    // Nothing is pushed, removed or put back after it, and the controller says so.
+    assert_eq!(run.events.last().map(|e| e.1), Some(EventKind::Hold));
+    assert!(matches!(run.status, ControllerStatus::Held { task: 0, .. }));
+    // The avoidance alone brings the robot to rest inside the limits.
+    let last = run.sent.last().copied().unwrap_or_default();
+    assert!(last.norm() < 1e-3, "velocity at the end {last:?}");
     assert_continuous_at_events(&run, 0.01);
 }
 

@@ -212,6 +212,28 @@ fn the_early_escape_keeps_uniform_starts_off_the_false_equilibria() {
     );
 }
 
+/// D13 hold: from uniform starts on the square marker's Afma6 most failed runs of the stack with gradient the fallback
+/// leaves end past a hard limit; holding instead (the default) keeps the robot inside its limits in most of them, and
+/// costs at most a draw that converged without it (0–2 of 200 in the study).
+#[test]
+fn holding_keeps_failed_uniform_runs_inside_the_limits() {
+    let held = scenario("square_marker_afma6");
+    assert!(held.controller.hold_before_limit);
+    let mut crossing = held.clone();
+    crossing.controller.hold_before_limit = false;
+    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 16, 3);
+    let count = |outcomes: &[&str], which: &str| outcomes.iter().filter(|&&o| o == which).count();
+    let (held, crossing) = (outcomes(&held), outcomes(&crossing));
+    let (crossed_with, crossed_without) =
+        (count(&held, "joint_limit"), count(&crossing, "joint_limit"));
+    assert!(
+        crossed_without >= 4 && 2 * crossed_with <= crossed_without,
+        "past a limit: {crossed_with} with the hold, {crossed_without} without"
+    );
+    assert!(count(&held, "stalled") >= crossed_without - crossed_with);
+    assert!(count(&held, "converged") + 1 >= count(&crossing, "converged"));
+}
+
 /// The same seed gives the same draws and outcomes (whatever thread runs a draw); another seed other draws.
 #[test]
 fn a_study_is_reproducible_from_its_seed() {
