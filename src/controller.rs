@@ -812,6 +812,12 @@ impl<const N: usize> StackController<N> {
         self.fallback
     }
 
+    /// `true` once the controller has held before a hard limit ([`ControllerParameters::hold_before_limit`], D13): every
+    /// task is dropped for good, and the velocity is the avoidance's alone.
+    pub fn is_held(&self) -> bool {
+        self.held.is_some()
+    }
+
     /// What the controller waits for (to explain a run that did not converge in its budget).
     pub fn status(&self) -> ControllerStatus {
         if let Some((task, time)) = self.held {

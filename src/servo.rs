@@ -415,8 +415,12 @@ pub struct ServoOutput<const N: usize> {
     pub stack: [usize; MAX_TASKS],
     /// How many tasks are stacked.
     pub stack_len: usize,
-    /// The stack change made this period (push, removal, re-insertion, fallback, escape), if any.
+    /// The stack change made this period (push, removal, re-insertion, fallback, escape, hold), if any.
     pub event: Option<EventKind>,
+    /// `true` once the controller has held before a hard limit (D13, [`EventKind::Hold`]): it has dropped every task
+    /// for good, the velocity is the joint-limit avoidance's alone (the arm comes to rest inside its limits), and the
+    /// goal will not be reached from here; the application should stop servoing and plan another approach.
+    pub held: bool,
     /// `‖q̇_n‖`, the norm of the stack velocity without transition and avoidance (mixed rad/s and m/s): the controller
     /// pushes the next task, or tries to put a removed one back, once it is below
     /// [`ControllerParameters::settle_velocity_with_removal`] ([D5](crate::theory#d5)).
@@ -600,6 +604,7 @@ impl<const N: usize> VisualServo<N> {
                 stack: [0; MAX_TASKS],
                 stack_len: 0,
                 event: None,
+                held: false,
                 stack_velocity_norm: f64::NAN,
                 converged: false,
                 depths: [f64::NAN; 4],
@@ -823,6 +828,7 @@ impl<const N: usize> VisualServo<N> {
         output.task_gains = task_gains;
         output.error_norm = task_errors.iter().map(|e| e * e).sum::<f64>().sqrt();
         output.event = step.event;
+        output.held = self.controller.is_held();
         output.stack_velocity_norm = step.stack_velocity_norm;
         let stacked = self.controller.stacked();
         output.stack_len = stacked.len().min(MAX_TASKS);

@@ -1450,7 +1450,7 @@ pub fn simulate_with<const N: usize>(
             }),
             // A held controller (D13) has given up: the run ends once the avoidance has brought the robot to rest.
             (None, None)
-                if matches!(controller.status(), ControllerStatus::Held { .. })
+                if controller.is_held()
                     && velocity.norm() < controller.parameters().settle_velocity =>
             {
                 Some(budget_outcome(&controller, &task_names, Some(&record)))

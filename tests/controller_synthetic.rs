@@ -58,8 +58,9 @@ struct Run {
     sent: Vec<JointVector<3>>,
     laws: Vec<JointVector<3>>,
     mu: f64,
-    /// The controller's status at the end.
+    /// The controller's status at the end, and whether it says it held.
     status: ControllerStatus,
+    held: bool,
 }
 
 impl Run {
@@ -190,6 +191,7 @@ fn run_guarded(
         laws,
         mu: law.transition_gain(),
         status: controller.status(),
+        held: controller.is_held(),
     }
 }
 
@@ -305,6 +307,7 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
         .unwrap();
     assert_eq!(best.0, 1);
     // The limit is kept while "reach" is out and until its last return; then it is reached as push-only does.
+    assert!(!run.held);
     let last_back = fallbacks.last().unwrap().0;
     assert!(run
         .hit
@@ -339,7 +342,7 @@ fn holding_keeps_the_limit_an_unachievable_task_would_cross() {
     assert_eq!(removals_before, 2, "events: {:?}", run.events);
     // Nothing is pushed, removed or put back after it, and the controller says so.
     assert_eq!(run.events.last().map(|e| e.1), Some(EventKind::Hold));
-    assert!(matches!(run.status, ControllerStatus::Held { task: 0, .. }));
+    assert!(matches!(run.status, ControllerStatus::Held { task: 0, .. }) && run.held);
     // The avoidance alone brings the robot to rest inside the limits.
     let last = run.sent.last().copied().unwrap_or_default();
     assert!(last.norm() < 1e-3, "velocity at the end {last:?}");
