@@ -263,8 +263,8 @@ pub struct ControllerParameters {
     pub escape_growth_rate: f64,
     /// Whether the controller **holds** rather than let the law cross a hard limit (D13; default `true`): after the
     /// fallback, when the configuration predicted `max(T, 1/μ)` ahead is past a hard limit (or loses the target, the
-    /// last resort's other trigger) and no task can be removed
-    /// (the last resorts are spent, or the one task left is the last), every task is dropped at once; the law is then
+    /// last resort's other trigger) and no task can be removed (the last resorts are spent, or the one task left is
+    /// the last), every task is dropped at once; the law is then
     /// the avoidance alone, `u = −κ ∇h`, blended in by the transition of D1, the robot comes to rest inside its
     /// limits, and the controller stays [`ControllerStatus::Held`] (a simulation then ends `stalled`, naming the
     /// hold). The stack with gradient, the fallback's law, would cross the limit there, where a real robot stops with

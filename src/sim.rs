@@ -950,9 +950,9 @@ fn budget_outcome<const N: usize>(
         ControllerStatus::Held { task, time } => Outcome::Stalled {
             task,
             reason: format!(
-                "held at t = {time:.2} s: after the fallback a hard limit lay one transition ahead and no task could be \
-                 removed, so every task was dropped from {} on and the robot kept inside its limits (task errors: \
-                 {error_list})",
+                "held at t = {time:.2} s: after the fallback the law was predicted past a hard limit (or to lose the \
+                 target) one transition ahead and no task could be removed, so every task was dropped from {} on and \
+                 the robot kept inside its limits (task errors: {error_list})",
                 task_names[task]
             ),
         },
