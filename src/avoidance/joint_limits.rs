@@ -103,6 +103,36 @@ impl<const N: usize> JointLimits<N> {
         )
     }
 
+    /// The braking of [D25](crate::theory#d25): the uniform scale `s ∈ [0, 1]` such that every joint moving towards a
+    /// finite limit keeps `|s q̇_i| ≤ ξ d_i`, `d_i ≥ 0` its distance to that limit (m or rad), `ξ` the braking rate
+    /// `rate` (s⁻¹), `q̇` a joint velocity (m/s or rad/s). `s = min(1, min_i ξ d_i / |q̇_i|)`: 1 far from the limits;
+    /// near one the whole velocity is scaled, so its direction, and with it every task's priority, is kept. Sent for a
+    /// period `Δt ≤ 1/ξ`, the velocity moves each such joint by at most `ξ Δt d_i ≤ d_i`: the distance shrinks by at
+    /// most the factor `1 − ξ Δt` per period and the limit is approached, never crossed. A joint already past a limit
+    /// and moving further out gives `s = 0`. Unlimited joints and a rate of `+∞` never brake.
+    pub fn braking_scale(&self, q: &JointVector<N>, velocity: &JointVector<N>, rate: f64) -> f64 {
+        if rate == f64::INFINITY {
+            return 1.0;
+        }
+        let mut scale: f64 = 1.0;
+        for joint in 0..N {
+            let speed = velocity[joint];
+            let distance = if speed > 0.0 {
+                self.upper[joint] - q[joint]
+            } else if speed < 0.0 {
+                q[joint] - self.lower[joint]
+            } else {
+                continue;
+            };
+            // An unlimited joint's distance is +∞: no bound.
+            let allowed = rate * distance.max(0.0);
+            if allowed < speed.abs() {
+                scale = scale.min(allowed / speed.abs());
+            }
+        }
+        scale
+    }
+
     /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the
     /// acceptable box, always 0 for an unlimited joint).
     fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
@@ -269,6 +299,72 @@ mod tests {
             let q = JointVector::<6>::from_fn(|i, _| limits.lower()[i] + s[i] * (limits.upper()[i] - limits.lower()[i]));
             prop_assert!(gradient_error(&limits, &q, 1e-6) < 1e-8);
         }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// D25: braked, the velocity sent for any period `Δt ≤ 1/ξ` keeps every joint inside its limits, from anywhere
+        /// inside them, and is scaled no more than the closest joint needs: some joint moving towards its limit is at
+        /// exactly `|s q̇_i| = ξ d_i` when `s < 1`.
+        #[test]
+        fn braking_never_crosses_a_limit(
+            s in proptest::collection::vec(0.0..=1.0f64, 6),
+            v in proptest::collection::vec(-5.0..5.0f64, 6),
+            rate in 0.5..50.0f64,
+            fraction in 0.01..=1.0f64,
+        ) {
+            let limits = limits();
+            let q = JointVector::<6>::from_fn(|i, _| limits.lower()[i] + s[i] * (limits.upper()[i] - limits.lower()[i]));
+            let velocity = JointVector::<6>::from_row_slice(&v);
+            let scale = limits.braking_scale(&q, &velocity, rate);
+            prop_assert!((0.0..=1.0).contains(&scale));
+            let period = fraction / rate;
+            let next = q + velocity * (scale * period);
+            for i in 0..6 {
+                prop_assert!(limits.lower()[i] <= next[i] && next[i] <= limits.upper()[i], "joint {i}: {}", next[i]);
+            }
+            if scale < 1.0 {
+                let tight = (0..6).any(|i| {
+                    let d = if velocity[i] > 0.0 { limits.upper()[i] - q[i] } else { q[i] - limits.lower()[i] };
+                    ((scale * velocity[i]).abs() - rate * d).abs() <= 1e-12 * (1.0 + velocity[i].abs())
+                });
+                prop_assert!(tight, "scaled by {scale} with no joint at its bound");
+            }
+        }
+    }
+
+    /// D25 at the edges: far from the limits the velocity is sent as it is; a joint past a limit and moving further
+    /// out stops everything; moving back in, it brakes nothing; an unlimited joint and a rate of `+∞` never brake.
+    #[test]
+    fn braking_at_the_edges() {
+        let limits = limits();
+        let middle = (limits.lower() + limits.upper()) * 0.5;
+        let slow = JointVector::<6>::repeat(0.01);
+        assert_eq!(limits.braking_scale(&middle, &slow, 5.0), 1.0);
+        let mut past = middle;
+        past[4] = limits.upper()[4] + 0.01;
+        let mut outwards = JointVector::<6>::zeros();
+        outwards[4] = 0.1;
+        assert_eq!(limits.braking_scale(&past, &outwards, 5.0), 0.0);
+        assert_eq!(limits.braking_scale(&past, &-outwards, 5.0), 1.0);
+        assert_eq!(limits.braking_scale(&past, &outwards, f64::INFINITY), 1.0);
+        let inf = f64::INFINITY;
+        let free = JointLimits::<2>::new(
+            JointVector::<2>::new(-inf, -1.0),
+            JointVector::<2>::new(inf, 1.0),
+            0.1,
+        )
+        .unwrap();
+        let q = JointVector::<2>::new(1e6, 0.0);
+        assert_eq!(
+            free.braking_scale(&q, &JointVector::<2>::new(100.0, 0.0), 5.0),
+            1.0
+        );
+        // The limited joint, 1 rad from its limit at 10 rad/s: ξ d / |q̇| = 5 · 1 / 10.
+        assert_eq!(
+            free.braking_scale(&q, &JointVector::<2>::new(100.0, 10.0), 5.0),
+            0.5
+        );
     }
 
     /// An unlimited joint (a continuous joint) adds nothing to `h` or `∇h` however far it turns, is never violated,
