@@ -919,8 +919,15 @@ impl Scenario {
             ..StackParameters::default()
         };
         let law = ControlLaw::with_stack_parameters(stack, mu, kappa)?;
+        // The baselines are the paper's laws as they are: no removal, and no braking before the limits (D25).
+        let full_method = kind == RunKind::StackController;
         let controller = ControllerParameters {
-            allow_removal: kind == RunKind::StackController,
+            allow_removal: full_method,
+            braking_rate: if full_method {
+                self.controller.braking_rate
+            } else {
+                f64::INFINITY
+            },
             ..self.controller
         };
         let drive = Drive {

@@ -394,13 +394,16 @@ impl<const N: usize> ServoConfig<N> {
 /// What one period gives: the velocity to send and what the servo did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServoOutput<const N: usize> {
-    /// The joint velocity to send (rad/s, m/s): the controller's, scaled so that every `|q̇_i| ≤ q̇_i^max`.
+    /// The joint velocity to send (rad/s, m/s): the controller's, scaled so that every `|q̇_i| ≤ q̇_i^max` and, near a
+    /// hard limit, every joint moving towards it keeps `|q̇_i| ≤ ξ d_i` (the braking of [D25](crate::theory#d25),
+    /// [`crate::controller::ControllerParameters::braking_rate`]).
     pub velocity: JointVector<N>,
     /// The controller's velocity before scaling.
     pub unscaled_velocity: JointVector<N>,
-    /// The uniform scale factor `s ∈ (0, 1]` (`velocity = s · unscaled_velocity`).
+    /// The uniform scale factor `s ∈ [0, 1]` (`velocity = s · unscaled_velocity`): the velocity limits' times the
+    /// braking's.
     pub scale: f64,
-    /// `true` when `s < 1` (a limit was active).
+    /// `true` when `s < 1` (a velocity limit or the braking was active).
     pub scaled: bool,
     /// `‖[e_1; …; e_n]‖` over every task, stacked or not (the reserve image points included).
     pub error_norm: f64,
@@ -814,9 +817,14 @@ impl<const N: usize> VisualServo<N> {
         let step =
             self.controller
                 .step(&self.law, &self.values, Some(cost), q, self.iteration, time)?;
-        // Uniform scaling into the velocity limits: the direction is kept.
+        // Uniform scaling into the velocity limits, then the braking before a hard limit (D25): the direction is kept.
         let unscaled = step.velocity;
-        let scale = crate::math::velocity_limit_scale(&unscaled, &self.max_velocity);
+        let braking_rate = self.controller.parameters().braking_rate;
+        let limit = crate::math::velocity_limit_scale(&unscaled, &self.max_velocity);
+        let scale = limit
+            * self
+                .limits
+                .braking_scale(q, &(unscaled * limit), braking_rate);
         let velocity = unscaled * scale;
         self.controller.set_sent_velocity(&velocity)?;
         let output = &mut self.output;

@@ -10,7 +10,10 @@
 //!    run as **feature lost**;
 //! 3. every visual task is evaluated (`e_i`, `L_i`, `J_i`, [\[M42\]](crate::theory#m42)); when the stack is complete and the error of
 //!    every task is below the convergence threshold, the run has **converged**;
-//! 4. one controller iteration ([`StackController::step`]) gives `q̇`; explicit Euler `q ← q + Δt q̇`;
+//! 4. one controller iteration ([`StackController::step`]) gives `q̇`, scaled uniformly into the robot's velocity limits
+//!    and, for the full method, braked before the hard limits (D25,
+//!    [`ControllerParameters::braking_rate`](crate::controller::ControllerParameters::braking_rate)); the controller is
+//!    told what was sent; explicit Euler `q ← q + Δt q̇`;
 //! 5. a joint outside `[q^min, q^max]` ends the run as **joint limit** (D11: a real robot stops at its limit), with the
 //!    joint, the iteration and the tasks stacked; when the scene has obstacles, a link–obstacle signed distance `≤ 0`
 //!    ends it as **collision**.
@@ -1203,6 +1206,15 @@ pub fn simulate_with<const N: usize>(
     log: &mut dyn RunLog<N>,
 ) -> Result<Run<N>, SimError> {
     parameters.validate()?;
+    // D25: braked for one period `Δt`, a joint covers at most `ξ Δt` of its distance to the limit (`ξ = +∞`: off).
+    let braking_rate = drive.controller.braking_rate;
+    if braking_rate.is_finite() && braking_rate * parameters.period > 1.0 {
+        return Err(SimError::InvalidParameter {
+            name: "controller.braking_rate",
+            value: braking_rate,
+            expected: "at most 1/period (s⁻¹): braked faster, a joint could cross its limit within one period",
+        });
+    }
     if let Some(joint) = scene.limits.violated_joint(start) {
         return Err(SimError::StartOutsideLimits {
             joint,
@@ -1418,8 +1430,14 @@ pub fn simulate_with<const N: usize>(
                     None => return Err(error.into()),
                 },
             };
-        // The robot's velocity limits: uniform scaling, and the controller told what was sent.
-        let velocity = step.velocity * velocity_limit_scale(&step.velocity, &max_velocity);
+        // The robot's velocity limits, then the braking before a hard limit (D25): uniform scalings, and the
+        // controller told what was sent.
+        let limited = step.velocity * velocity_limit_scale(&step.velocity, &max_velocity);
+        let braking =
+            scene
+                .limits
+                .braking_scale(&q, &limited, controller.parameters().braking_rate);
+        let velocity = limited * braking;
         controller.set_sent_velocity(&velocity)?;
         record.velocity = velocity;
         record.sent = true;

@@ -680,7 +680,16 @@ fn invalid_parameters_and_task_count() {
             "settle_transitions",
         ),
     ];
-    for (parameters, expected) in cases {
+    let braking = [f64::NAN, 0.0, -1.0, f64::NEG_INFINITY].map(|braking_rate| {
+        (
+            ControllerParameters {
+                braking_rate,
+                ..Default::default()
+            },
+            "braking_rate",
+        )
+    });
+    for (parameters, expected) in cases.into_iter().chain(braking) {
         match StackController::new(parameters, &values) {
             Err(ControllerError::InvalidParameter { name, .. }) => assert_eq!(name, expected),
             other => panic!("{expected}: expected InvalidParameter, got {other:?}"),

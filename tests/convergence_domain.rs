@@ -217,8 +217,10 @@ fn the_early_escape_keeps_uniform_starts_off_the_false_equilibria() {
 /// costs at most a draw that converged without it (0–2 of 200 in the study).
 #[test]
 fn holding_keeps_failed_uniform_runs_inside_the_limits() {
-    let held = scenario("square_marker_afma6");
+    let mut held = scenario("square_marker_afma6");
     assert!(held.controller.hold_before_limit);
+    // The hold alone: without the braking of D25, which keeps every run inside the limits by itself.
+    held.controller.braking_rate = f64::INFINITY;
     let mut crossing = held.clone();
     crossing.controller.hold_before_limit = false;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 16, 3);
@@ -232,6 +234,34 @@ fn holding_keeps_failed_uniform_runs_inside_the_limits() {
     );
     assert!(count(&held, "stalled") >= crossed_without - crossed_with);
     assert!(count(&held, "converged") + 1 >= count(&crossing, "converged"));
+}
+
+/// D25 braking: on the UR5e, whose elbow is fast for its 0.55 rad range, a third of the full method's uniform runs
+/// reach a hard limit before the changes decided from predictions (removals, fallback, hold) take effect. Braked as
+/// it nears a limit (the default), no run crosses one, and none that converged unbraked is lost.
+#[test]
+fn braking_keeps_every_uniform_run_inside_the_limits() {
+    let braked = scenario("ur5e_limits");
+    assert!(braked.controller.braking_rate.is_finite());
+    let mut unbraked = braked.clone();
+    unbraked.controller.braking_rate = f64::INFINITY;
+    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 16, 3);
+    let (braked, unbraked) = (outcomes(&braked), outcomes(&unbraked));
+    let crossed_without = unbraked.iter().filter(|&&o| o == "joint_limit").count();
+    assert!(
+        crossed_without >= 3,
+        "the sample holds too few crossings to say anything: {unbraked:?}"
+    );
+    assert!(
+        !braked.contains(&"joint_limit"),
+        "past a limit with the braking: {braked:?}"
+    );
+    for (draw, (without, with)) in unbraked.iter().zip(&braked).enumerate() {
+        assert!(
+            *without != "converged" || *with == "converged",
+            "draw {draw}: {without} unbraked, {with} braked"
+        );
+    }
 }
 
 /// The same seed gives the same draws and outcomes (whatever thread runs a draw); another seed other draws.

@@ -254,6 +254,17 @@ fn gains_horizons_and_periods_beyond_physical_ranges_are_named() {
         }
         other => panic!("expected an invalid period, got {other:?}"),
     }
+    // D25: a braking rate above 1/period could not keep a joint from crossing its limit within one period.
+    let mut scenario = Scenario::from_toml_str(UR5E_SCENARIO, None).unwrap();
+    scenario.controller.braking_rate = 2.0 / scenario.simulation.period;
+    match scenario.run::<6>(RunKind::StackController) {
+        Err(ScenarioError::Simulation(SimError::InvalidParameter { name, .. })) => {
+            assert_eq!(name, "controller.braking_rate");
+        }
+        other => panic!("expected an invalid braking rate, got {other:?}"),
+    }
+    scenario.controller.braking_rate = f64::NAN;
+    assert!(scenario.run::<6>(RunKind::StackController).is_err());
     let far = UR5E_SCENARIO.replace(
         "translation_m = [0.0, 0.0, 0.45]",
         "translation_m = [0.0, 0.0, 1e308]",

@@ -6,6 +6,7 @@ mod counting_allocator;
 
 use counting_allocator::allocations_during;
 use nalgebra::{Isometry3, Point2};
+use servostack::avoidance::JointLimits;
 use servostack::camera::{BrownConrady, CalibratedCamera, CameraIntrinsics};
 use servostack::controller::{ControllerParameters, EventKind};
 use servostack::depth::DepthSource;
@@ -833,6 +834,65 @@ fn the_classical_task_converges_on_the_peer_scene() {
     assert!(last.converged, "{last:?}");
     let (mm, deg) = plant.pose_error(&JointVector::from([0.0, 0.0, 0.0, 0.0, 0.3, 0.0]));
     assert!(mm < 0.1 && deg < 0.01, "{mm} mm, {deg}°");
+}
+
+/// D25 through the façade: with the last wrist joint's lower limit raised above its goal (−0.2 rad against −0.397),
+/// the classical task drives it into that limit. Unbraked, the robot crosses it; braked (the default), every joint
+/// moving towards a limit keeps `|q̇_i| ≤ ξ d_i`, the braking acts, and no limit is crossed.
+#[test]
+fn the_servo_brakes_before_a_hard_limit() {
+    let (scenario, experiment) = paper();
+    let camera = distorted_camera(&experiment.scene);
+    let mut config = paper_config(&scenario, &experiment, camera);
+    config.tasks = TaskChoice::Classical {
+        gain: scenario.tasks.classical_gain,
+        fourth: FourthTask::Auto,
+    };
+    let mut lower = *config.chain.lower_limits();
+    lower[5] = -0.2;
+    let upper = *config.chain.upper_limits();
+    config.chain = config.chain.clone().with_limits(lower, upper).unwrap();
+    let limits = JointLimits::new(lower, upper, config.activation_ratio).unwrap();
+    let rate = config.controller.braking_rate;
+    assert!(rate.is_finite());
+    let run = |config: ServoConfig<6>, check: &mut dyn FnMut(&ServoOutput<6>, &JointVector<6>)| {
+        let mut servo = VisualServo::new(config).unwrap();
+        let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, 0.01);
+        for _ in 0..3000 {
+            let pixels = plant.pixels();
+            let output = *servo.step(plant.time(), &pixels, &plant.q).unwrap();
+            check(&output, &plant.q);
+            plant.apply(&output.velocity);
+            if limits.violated_joint(&plant.q).is_some() {
+                return true;
+            }
+        }
+        false
+    };
+    let mut unbraked = config.clone();
+    unbraked.controller.braking_rate = f64::INFINITY;
+    assert!(
+        run(unbraked, &mut |_, _| {}),
+        "the classical law no longer reaches the limit"
+    );
+    let mut braked = 0;
+    let crossed = run(config, &mut |output, q| {
+        for i in 0..6 {
+            let v = output.velocity[i];
+            let distance = if v > 0.0 {
+                upper[i] - q[i]
+            } else {
+                q[i] - lower[i]
+            };
+            assert!(
+                v.abs() <= rate * distance * (1.0 + 1e-12),
+                "joint {i}: {v} at {distance} from its limit"
+            );
+        }
+        braked += usize::from(output.scaled);
+    });
+    assert!(!crossed, "a limit was crossed with the braking");
+    assert!(braked > 10, "braked at {braked} periods only");
 }
 
 /// Invalid configurations are named errors at construction.
