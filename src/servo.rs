@@ -820,11 +820,9 @@ impl<const N: usize> VisualServo<N> {
         // Uniform scaling into the velocity limits, then the braking before a hard limit (D25): the direction is kept.
         let unscaled = step.velocity;
         let braking_rate = self.controller.parameters().braking_rate;
-        let limit = crate::math::velocity_limit_scale(&unscaled, &self.max_velocity);
-        let scale = limit
-            * self
-                .limits
-                .braking_scale(q, &(unscaled * limit), braking_rate);
+        let scale = self
+            .limits
+            .sent_velocity_scale(q, &unscaled, &self.max_velocity, braking_rate);
         let velocity = unscaled * scale;
         self.controller.set_sent_velocity(&velocity)?;
         let output = &mut self.output;

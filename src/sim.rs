@@ -41,7 +41,7 @@ use crate::controller::{
 use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::feature::{FeatureError, Observation};
 use crate::law::{ControlLaw, LawError};
-use crate::math::{velocity_limit_scale, JointVector, KinematicJacobian};
+use crate::math::{JointVector, KinematicJacobian};
 use crate::measurement::{
     perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
 };
@@ -1432,12 +1432,11 @@ pub fn simulate_with<const N: usize>(
             };
         // The robot's velocity limits, then the braking before a hard limit (D25): uniform scalings, and the
         // controller told what was sent.
-        let limited = step.velocity * velocity_limit_scale(&step.velocity, &max_velocity);
-        let braking =
-            scene
+        let braking_rate = controller.parameters().braking_rate;
+        let velocity = step.velocity
+            * scene
                 .limits
-                .braking_scale(&q, &limited, controller.parameters().braking_rate);
-        let velocity = limited * braking;
+                .sent_velocity_scale(&q, &step.velocity, &max_velocity, braking_rate);
         controller.set_sent_velocity(&velocity)?;
         record.velocity = velocity;
         record.sent = true;

@@ -19,7 +19,7 @@
 
 use super::{checked_cost, dead_band, Cost, CostError};
 use crate::bounds::JOINT_POSITION;
-use crate::math::{first_non_finite, JointVector};
+use crate::math::{first_non_finite, velocity_limit_scale, JointVector};
 
 /// Joint limits and the cost [\[M20\]](crate::theory#m20) that keeps a configuration away from them.
 #[derive(Debug, Clone, PartialEq)]
@@ -131,6 +131,20 @@ impl<const N: usize> JointLimits<N> {
             }
         }
         scale
+    }
+
+    /// The scale of the velocity sent to the joints: `q̇` scaled uniformly into the robot's velocity limits
+    /// (`|q̇_i| ≤ q̇_i^max`, [`velocity_limit_scale`]), then braked before the hard limits ([`Self::braking_scale`] at
+    /// the rate `braking_rate`, s⁻¹; `+∞`: no braking). `s ∈ [0, 1]`, sent as `s q̇`.
+    pub fn sent_velocity_scale(
+        &self,
+        q: &JointVector<N>,
+        velocity: &JointVector<N>,
+        max_velocity: &JointVector<N>,
+        braking_rate: f64,
+    ) -> f64 {
+        let limit = velocity_limit_scale(velocity, max_velocity);
+        limit * self.braking_scale(q, &(velocity * limit), braking_rate)
     }
 
     /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the
