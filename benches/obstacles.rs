@@ -2,7 +2,7 @@
 //! collision geometry paired with each: 12 pairs): with every pair inside its influence distance, and with every
 //! pair beyond it (the cut-off query only). Also the visibility cost and the sum with the joint limits.
 
-#[path = "../tests/common/obstacle_fixture.rs"]
+#[path = "../tests/suite/obstacle_fixture.rs"]
 mod fixture;
 
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -1,6 +1,6 @@
 //! The fuzz harness for as long as asked: mutated URDFs, mutated scenario files and random control-step inputs in
 //! turn, each case on a 2 MiB worker thread with a time limit; prints the counts per kind and saves every failing input
-//! (panic, non-finite value inside `Ok`, hang) to `tests/data/fuzz_regressions/`, which `tests/fuzz.rs` replays.
+//! (panic, non-finite value inside `Ok`, hang) to `tests/data/fuzz_regressions/`, which `tests/suite/fuzz.rs` replays.
 //!
 //! `cargo run --release --example fuzz -- [--seconds S] [--cases N] [--seed SEED] [--limit-seconds L]`
 //! (defaults: 60 s, no case limit, seed 1, 20 s per case; stops at the first of `--seconds` and `--cases` per kind).

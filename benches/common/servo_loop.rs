@@ -1,5 +1,5 @@
 //! The closed visual-servoing loop on the Afma6 peer scene (docs/peer_scene.md), shared by `benches/peer.rs`,
-//! `benches/control_loop.rs` and the zero-allocation test (`tests/allocation.rs`), so that what is timed is exactly
+//! `benches/control_loop.rs` and the zero-allocation test (`tests/suite/allocation.rs`), so that what is timed is exactly
 //! what is proven allocation-free.
 //!
 //! Include with `#[path = "…/benches/common/servo_loop.rs"] mod servo_loop;`.

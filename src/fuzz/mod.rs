@@ -3,7 +3,7 @@
 //! a few kinematics, cost and control steps, on a worker thread of known stack size, with a time limit.
 //!
 //! A case passes when it returns (no hang), does not panic and returns no non-finite number inside an `Ok`: a
-//! rejected input is a pass, as long as its error is an error. `tests/fuzz.rs` runs a bounded, seeded number of cases
+//! rejected input is a pass, as long as its error is an error. `tests/suite/fuzz.rs` runs a bounded, seeded number of cases
 //! and replays every input that once failed (`tests/data/fuzz_regressions/`); `examples/fuzz.rs` runs for as long as
 //! asked and saves new failures there. Not part of the crate's API (hidden from its docs): it is here so that the
 //! test and the example share it.

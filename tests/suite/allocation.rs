@@ -1,15 +1,9 @@
 //! The real-time path allocates nothing on the heap (the model/workspace split): the steady-state control step, the
 //! features, the kinematics, the camera and the projection. Counted per thread by a global allocator.
 
-#[path = "common/counting_allocator.rs"]
-mod counting_allocator;
-
-#[path = "../benches/common/servo_loop.rs"]
-mod servo_loop;
-
-use counting_allocator::allocations_during;
+use crate::counting_allocator::allocations_during;
+use crate::servo_loop::{ServoLoop, Variant};
 use nalgebra::{Dyn, OMatrix, Point3, SMatrix, U6};
-use servo_loop::{ServoLoop, Variant};
 use servostack::avoidance::{Cost, JointLimits};
 use servostack::camera::{project_points, ImagePoint};
 use servostack::feature::{

@@ -225,7 +225,7 @@ fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
 
 /// The robot's velocity saturation: every velocity sent stays within the limits — the limits active over many
 /// periods — and the velocity sent does not jump at any change of the full method. (That the controller blends from
-/// the velocity the robot received is tested on the façade, `tests/servo.rs`, where it is observable.)
+/// the velocity the robot received is tested on the façade, `tests/suite/servo.rs`, where it is observable.)
 #[test]
 fn saturated_velocities_stay_within_the_limits_and_continuous() {
     let (base, _) = scenario();

@@ -1,10 +1,7 @@
 //! The per-cycle calls of the real-camera path allocate nothing: undistortion of measured pixels,
 //! the measurement model (noise, slower camera, latency, prediction), the depth estimator and the depth assignment.
 
-#[path = "common/counting_allocator.rs"]
-mod counting_allocator;
-
-use counting_allocator::allocations_during;
+use crate::counting_allocator::allocations_during;
 use nalgebra::{Point2, Vector6};
 use servostack::camera::{BrownConrady, CalibratedCamera, CameraIntrinsics, ImagePoint};
 use servostack::depth::{assign_depths, DepthEstimator, Depths};

@@ -13,7 +13,7 @@ use servostack::sim::{Outcome, SimError, SimulationParameters};
 use servostack::stack::{solve_stack, StackError, StackParameters, StackWorkspace};
 use servostack::task::{TaskError, TaskJacobian, TaskValue};
 
-const UR5E_SCENARIO: &str = include_str!("../assets/scenarios/ur5e.toml");
+const UR5E_SCENARIO: &str = include_str!("../../assets/scenarios/ur5e.toml");
 
 /// Runs `f` on a thread with the 2 MiB stack of spawned threads (a stack overflow there aborts the test binary).
 fn on_2_mib_thread<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 const THEORY: &str = "docs/theory.md";
 
 /// This file cites undefined numbers and names outside documents on purpose, in its samples.
-const THIS_FILE: &str = "tests/citations.rs";
+const THIS_FILE: &str = "tests/suite/citations.rs";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 enum Kind {

@@ -1,7 +1,6 @@
 //! A global allocator that counts the heap allocations made by the current thread, for zero-allocation tests.
 //!
-//! Include with `#[path = "common/counting_allocator.rs"] mod counting_allocator;` in a test binary, which then owns
-//! the global allocator.
+//! It is the global allocator of the integration-test binary (`tests/suite/main.rs`).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

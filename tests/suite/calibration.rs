@@ -6,8 +6,8 @@ use servostack::camera::{
 };
 use std::path::Path;
 
-const ROS: &str = include_str!("data/ros_camera_info.yaml");
-const OPENCV: &str = include_str!("data/opencv_calibration.yaml");
+const ROS: &str = include_str!("../data/ros_camera_info.yaml");
+const OPENCV: &str = include_str!("../data/opencv_calibration.yaml");
 
 fn data(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

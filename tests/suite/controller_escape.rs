@@ -5,10 +5,7 @@
 //! achieved at the goal only. From `q₁ = −0.8` the second task moves `q₁` up, towards the reserve's goal, until it
 //! stops at −0.5 (D23's case); from `q₁ = −0.3` it moves `q₁` down, away from it (D24's case).
 
-#[path = "common/counting_allocator.rs"]
-mod counting_allocator;
-
-use counting_allocator::allocations_during;
+use crate::counting_allocator::allocations_during;
 use servostack::controller::{ControllerError, ControllerParameters, EventKind, StackController};
 use servostack::law::ControlLaw;
 use servostack::math::JointVector;

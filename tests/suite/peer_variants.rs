@@ -2,10 +2,7 @@
 //! direction, so the avoidance term is zero; in CL (ViSP's large projection operator) it is computed and applied while
 //! joint 4 is in its activation band and `‖e‖ > 0.1`, as ViSP's is; every variant servos.
 
-#[path = "../benches/common/servo_loop.rs"]
-mod servo_loop;
-
-use servo_loop::{ServoLoop, Variant};
+use crate::servo_loop::{ServoLoop, Variant};
 
 /// Runs one episode of 1000 steps; returns the number of steps with a non-zero avoidance term and the final `‖e‖`.
 fn episode(variant: Variant) -> (usize, f64) {

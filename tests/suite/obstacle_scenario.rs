@@ -6,7 +6,7 @@ use servostack::controller::EventKind;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
 use servostack::sim::Outcome;
 
-const SCENARIO: &str = include_str!("../assets/scenarios/obstacle_afma6.toml");
+const SCENARIO: &str = include_str!("../../assets/scenarios/obstacle_afma6.toml");
 
 fn scenario() -> Scenario {
     Scenario::from_toml_str(SCENARIO, None).unwrap()

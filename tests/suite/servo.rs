@@ -1,10 +1,7 @@
 //! The hardware-loop façade (`servostack::servo`) in small closed loops: the simulated robot moves by the velocity the
 //! façade returns, and the pixels the façade reads are made by the true (distorted) camera from the simulated robot.
 
-#[path = "common/counting_allocator.rs"]
-mod counting_allocator;
-
-use counting_allocator::allocations_during;
+use crate::counting_allocator::allocations_during;
 use nalgebra::{Isometry3, Point2};
 use servostack::avoidance::JointLimits;
 use servostack::camera::{BrownConrady, CalibratedCamera, CameraIntrinsics};

@@ -7,7 +7,7 @@ use servostack::scenario::{RunKind, Scenario, ScenarioError};
 use servostack::sim::{Outcome, Run};
 use std::path::Path;
 
-const UR5E: &str = include_str!("../assets/scenarios/ur5e.toml");
+const UR5E: &str = include_str!("../../assets/scenarios/ur5e.toml");
 
 fn assets() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios"))

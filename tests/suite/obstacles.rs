@@ -1,8 +1,7 @@
 //! Obstacle and visibility costs: gradients against central finite differences, exact zeros outside the influence
 //! zone and inside the image margin, hand-computed values, bad input.
 
-#[path = "common/obstacle_fixture.rs"]
-mod fixture;
+use crate::obstacle_fixture as fixture;
 
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Point3, Vector1};

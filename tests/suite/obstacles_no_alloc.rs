@@ -1,12 +1,9 @@
 //! The stack controller's step with the composed avoidance cost (joint limits, three obstacles, visibility) allocates
 //! nothing while the obstacle cost is active (the model/workspace split).
 
-#[path = "common/counting_allocator.rs"]
-mod counting_allocator;
-#[path = "common/obstacle_fixture.rs"]
-mod fixture;
+use crate::obstacle_fixture as fixture;
 
-use counting_allocator::allocations_during;
+use crate::counting_allocator::allocations_during;
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use servostack::avoidance::Cost;
 use servostack::camera::CameraIntrinsics;
