@@ -51,7 +51,7 @@ fn study(draws: usize) {
             .expect("thread pool");
         let study = Study::new(&scenario, standard_families(), draws, 1).expect("study");
         let start = Instant::now();
-        let result = pool.install(|| study.run::<6>()).expect("study run");
+        let result = pool.install(|| study.run()).expect("study run");
         let seconds = start.elapsed().as_secs_f64();
         let total_draws = draws * result.families.len();
         let rate = result.iterations as f64 / seconds;

@@ -105,16 +105,6 @@ fn parse(args: &[String]) -> Result<Options, String> {
     Ok(options)
 }
 
-/// [`run`] for the joint count of the scenario's robot.
-struct RunStudy<'a>(&'a Study<'a>, &'a Options);
-
-impl ForJointCount for RunStudy<'_> {
-    type Output = Result<(StudyResult, Slice), Box<dyn std::error::Error>>;
-    fn call<const N: usize>(self) -> Self::Output {
-        run::<N>(self.0, self.1)
-    }
-}
-
 /// One draw of a family as a scenario, for the joint count of the scenario's robot.
 struct DrawScenario<'a>(&'a Study<'a>, &'a str, usize);
 
@@ -125,19 +115,19 @@ impl ForJointCount for DrawScenario<'_> {
     }
 }
 
-/// The study and the slice, for a robot of `N` joints.
-fn run<const N: usize>(
+/// The study and the slice.
+fn run(
     study: &Study<'_>,
     options: &Options,
 ) -> Result<(StudyResult, Slice), Box<dyn std::error::Error>> {
-    let result = study.run::<N>()?;
+    let result = study.run()?;
     // The slice spans the wide family's perturbation: ±8 cm for a prismatic joint, ±12° for a revolute one.
-    let (chain, _) = study.scenario().robot_model::<N>()?;
-    let half_width = |joint: usize| match chain.joints().get(joint) {
-        Some(j) if !j.kind().is_rotational() => 0.08,
+    let kinds = study.scenario().joint_kinds()?;
+    let half_width = |joint: usize| match kinds.get(joint) {
+        Some(kind) if !kind.is_rotational() => 0.08,
         _ => 12f64.to_radians(),
     };
-    let slice = study.slice::<N>(
+    let slice = study.slice(
         options.slice,
         (half_width(options.slice.0), half_width(options.slice.1)),
         options.grid,
@@ -199,7 +189,7 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         println!("wrote {}", path.display());
         return Ok(());
     }
-    let (result, slice) = with_joint_count(scenario.joint_count()?, RunStudy(&study, &options))??;
+    let (result, slice) = run(&study, &options)?;
     print!("{result}");
     for (method, outcomes) in &slice.methods {
         let converged = outcomes.iter().filter(|&&o| o == "converged").count();

@@ -52,7 +52,7 @@ use crate::law::{ControlLaw, LawError};
 use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
-use crate::robot::{builtin, RobotError, SerialChain};
+use crate::robot::{builtin, JointKind, RobotError, SerialChain};
 use crate::servo::AdaptiveGain;
 use crate::sim::{
     simulate_with, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
@@ -732,6 +732,23 @@ impl Scenario {
             Err(ScenarioError::Robot(RobotError::JointCount { found, .. })) => Ok(found),
             Err(error) => Err(error),
         }
+    }
+
+    /// The kind of each independent joint of the scenario's robot, base to tip, for callers that are not generic in
+    /// the joint count.
+    ///
+    /// # Errors
+    /// As [`Scenario::robot_model`], and a joint count outside `1..=`[`MAX_JOINTS`].
+    pub fn joint_kinds(&self) -> Result<Vec<JointKind>, ScenarioError> {
+        struct Kinds<'s>(&'s Scenario);
+        impl ForJointCount for Kinds<'_> {
+            type Output = Result<Vec<JointKind>, ScenarioError>;
+            fn call<const N: usize>(self) -> Self::Output {
+                let (chain, _) = self.0.robot_model::<N>()?;
+                Ok(chain.joints().iter().map(|joint| joint.kind()).collect())
+            }
+        }
+        with_joint_count(self.joint_count()?, Kinds(self))?
     }
 
     /// The robot's chain (with the `joint_limits` override, if any) and camera mount.

@@ -17,13 +17,15 @@
 //! use servostack::scenario::Scenario;
 //! use servostack::study::{standard_families, Study};
 //! let scenario = Scenario::from_file("assets/scenarios/paper_afma6.toml".as_ref())?;
-//! let study = Study::new(&scenario, standard_families(), 200, 1)?.run::<6>()?;
+//! let study = Study::new(&scenario, standard_families(), 200, 1)?.run()?;
 //! print!("{study}");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 use crate::robot::{JointKind, KinematicsWorkspace};
-use crate::scenario::{PoseSpec, RunKind, Scenario, ScenarioError};
+use crate::scenario::{
+    with_joint_count, ForJointCount, PoseSpec, RunKind, Scenario, ScenarioError,
+};
 use crate::sim::{Outcome, Run};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
@@ -383,11 +385,27 @@ impl<'a> Study<'a> {
         self
     }
 
-    /// Runs every draw of every family on all cores.
+    /// Runs every draw of every family on all cores, for the joint count of the scenario's robot
+    /// ([`Scenario::joint_count`], 1 to [`MAX_JOINTS`](crate::scenario::MAX_JOINTS)).
+    ///
+    /// The runners are generic in the joint count; they are instantiated here, in the library, once for every count,
+    /// so a caller (the `convergence_domain` example) does not compile them again.
     ///
     /// # Errors
-    /// An invalid scenario, a family that cannot produce valid draws, a failure of the models (not an outcome).
-    pub fn run<const N: usize>(&self) -> Result<StudyResult, StudyError> {
+    /// An invalid scenario (a joint count out of that range included), a family that cannot produce valid draws, a
+    /// failure of the models (not an outcome).
+    pub fn run(&self) -> Result<StudyResult, StudyError> {
+        struct Work<'s, 'a>(&'s Study<'a>);
+        impl ForJointCount for Work<'_, '_> {
+            type Output = Result<StudyResult, StudyError>;
+            fn call<const N: usize>(self) -> Self::Output {
+                self.0.run_for::<N>()
+            }
+        }
+        with_joint_count(self.scenario.joint_count()?, Work(self))?
+    }
+
+    fn run_for<const N: usize>(&self) -> Result<StudyResult, StudyError> {
         let clock = std::time::Instant::now();
         // The scenario itself must be valid.
         self.scenario.experiment::<N>()?;
@@ -420,10 +438,31 @@ impl<'a> Study<'a> {
     /// `joints.0` and `joints.1` moved over `points × points` evenly spaced offsets within `±half_widths` (m or rad of
     /// each joint), on all cores. A start outside the limits or with the target out of the image is `invalid`.
     ///
+    /// For the joint count of the scenario's robot, as [`Self::run`].
+    ///
     /// # Errors
-    /// [`StudyError::InvalidParameter`] for a joint index `≥ N`, non-finite or negative half-widths or fewer than 2
-    /// points; model failures.
-    pub fn slice<const N: usize>(
+    /// [`StudyError::InvalidParameter`] for a joint index beyond the robot's joints, non-finite or negative
+    /// half-widths or fewer than 2 points; model failures.
+    pub fn slice(
+        &self,
+        joints: (usize, usize),
+        half_widths: (f64, f64),
+        points: usize,
+    ) -> Result<Slice, StudyError> {
+        struct Work<'s, 'a>(&'s Study<'a>, (usize, usize), (f64, f64), usize);
+        impl ForJointCount for Work<'_, '_> {
+            type Output = Result<Slice, StudyError>;
+            fn call<const N: usize>(self) -> Self::Output {
+                self.0.slice_for::<N>(self.1, self.2, self.3)
+            }
+        }
+        with_joint_count(
+            self.scenario.joint_count()?,
+            Work(self, joints, half_widths, points),
+        )?
+    }
+
+    fn slice_for<const N: usize>(
         &self,
         joints: (usize, usize),
         half_widths: (f64, f64),

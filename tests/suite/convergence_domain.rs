@@ -28,7 +28,7 @@ fn families(names: &[&str]) -> Vec<Family> {
 fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_gradient() {
     let scenario = scenario("paper_afma6");
     let study = Study::new(&scenario, families(&["mild", "strong"]), 8, 5).unwrap();
-    let result = study.run::<6>().unwrap();
+    let result = study.run().unwrap();
     for family in &result.families {
         let full = family
             .methods
@@ -79,7 +79,7 @@ fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_g
 fn on_the_ur5e_the_full_method_covers_its_baselines() {
     let scenario = scenario("ur5e_limits");
     let study = Study::new(&scenario, families(&["strong", "goal_4cm"]), 8, 9).unwrap();
-    let result = study.run::<6>().unwrap();
+    let result = study.run().unwrap();
     for family in &result.families {
         let converged = |kind| {
             family
@@ -113,7 +113,7 @@ fn runs_that_settle_away_from_the_goal_are_not_counted_as_converged() {
         scenario.simulation.goal_tolerance_deg,
     );
     let study = Study::new(&scenario, families(&["uniform"]), 16, 2).unwrap();
-    let result = study.run::<6>().unwrap();
+    let result = study.run().unwrap();
     let (mut converged, mut off_goal) = (0, 0);
     for draw in &result.families[0].draws {
         for method in &draw.methods {
@@ -150,7 +150,7 @@ fn full_method_outcomes(
     let study = Study::new(scenario, families(&[family]), draws, seed)
         .unwrap()
         .with_methods(&[RunKind::StackController]);
-    let result = study.run::<6>().unwrap();
+    let result = study.run().unwrap();
     result.families[0]
         .draws
         .iter()
@@ -272,7 +272,7 @@ fn a_study_is_reproducible_from_its_seed() {
         Study::new(&scenario, families(&["mild"]), 3, seed)
             .unwrap()
             .with_methods(&[RunKind::Classical])
-            .run::<6>()
+            .run()
             .unwrap()
     };
     let (a, b, c) = (run(3), run(3), run(4));
@@ -295,7 +295,7 @@ fn a_slice_marks_invalid_starts_and_runs_the_others() {
     let study = Study::new(&scenario, Vec::new(), 1, 1)
         .unwrap()
         .with_methods(&[RunKind::Classical, RunKind::StackController]);
-    let slice = study.slice::<6>((0, 2), (0.02, 0.04), 3).unwrap();
+    let slice = study.slice((0, 2), (0.02, 0.04), 3).unwrap();
     let lower = -0.5001; // joint 2's lower limit (the Afma6 built-in)
     for (method, outcomes) in &slice.methods {
         assert_eq!(outcomes.len(), 9, "{method:?}");
@@ -337,14 +337,14 @@ fn invalid_study_parameters_are_named() {
         Err(StudyError::UnknownFamily { name }) if name == "nowhere"
     ));
     assert!(matches!(
-        study.slice::<6>((0, 6), (0.01, 0.01), 3),
+        study.slice((0, 6), (0.01, 0.01), 3),
         Err(StudyError::InvalidParameter {
             name: "slice joints",
             ..
         })
     ));
     assert!(matches!(
-        study.slice::<6>((0, 1), (f64::NAN, 0.01), 3),
+        study.slice((0, 1), (f64::NAN, 0.01), 3),
         Err(StudyError::InvalidParameter {
             name: "slice half-width",
             ..
@@ -364,7 +364,7 @@ fn on_the_seven_joint_chain_swaps_do_not_cycle() {
     let study = Study::new(&scenario, families(&["mild", "view_10deg"]), 20, 3)
         .unwrap()
         .with_methods(&[RunKind::StackController]);
-    let result = study.run::<7>().unwrap();
+    let result = study.run().unwrap();
     for family in &result.families {
         let full = &family.methods[0];
         assert_eq!(
@@ -394,7 +394,7 @@ fn under_pixel_noise_the_full_method_settles_within_two_millimetres() {
         .unwrap()
         .with_methods(&[RunKind::StackController]);
     let mut within_aim = 0;
-    for draw in &study.run::<6>().unwrap().families[0].draws {
+    for draw in &study.run().unwrap().families[0].draws {
         let full = &draw.methods[0];
         assert!(full.converged(), "draw {}: {full:?}", draw.draw);
         assert!(

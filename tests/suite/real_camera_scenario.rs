@@ -50,7 +50,7 @@ fn full_method_reaches_the_goal_pose_through_a_noisy_camera() {
     let study = Study::new(&scenario, mild, 3, 11)
         .unwrap()
         .with_methods(&[RunKind::StackController]);
-    for draw in &study.run::<6>().unwrap().families[0].draws {
+    for draw in &study.run().unwrap().families[0].draws {
         let full = &draw.methods[0];
         assert!(full.converged(), "draw {}: {full:?}", draw.draw);
         let (translation_mm, rotation_deg) = (
