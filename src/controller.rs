@@ -614,11 +614,22 @@ pub enum ControllerStatus {
     Reinserting {
         /// The task.
         task: usize,
-        /// The last cost predicted with it back (`NaN` before the first test: the robot has not settled yet).
-        predicted_cost: f64,
-        /// The re-insertion threshold.
-        threshold: f64,
+        /// Its last re-insertion test; `None` before the first (a test waits for the stack to settle, `‖q̇_n‖ <
+        /// ε_add`, and for the task's dwell, D7).
+        last_test: Option<ReinsertionTest>,
+        /// The last `‖q̇_n‖`.
+        stack_velocity_norm: f64,
     },
+}
+
+/// A re-insertion test of a removed task (D7): the cost predicted with the task back, against the threshold it must
+/// stay under.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReinsertionTest {
+    /// The cost predicted with the task back.
+    pub predicted_cost: f64,
+    /// The threshold.
+    pub threshold: f64,
 }
 
 /// The stack controller's state: which tasks are stacked, pending and removed, the transition memory, the event log.
@@ -847,14 +858,19 @@ impl<const N: usize> StackController<N> {
         if let Some((task, time)) = self.held {
             ControllerStatus::Held { task, time }
         } else if let Some(&task) = self.removed.first() {
-            let (predicted_cost, threshold) = match self.last_reinsertion_test {
-                Some((tested, predicted, threshold)) if tested == task => (predicted, threshold),
-                _ => (f64::NAN, f64::NAN),
+            let last_test = match self.last_reinsertion_test {
+                Some((tested, predicted_cost, threshold)) if tested == task => {
+                    Some(ReinsertionTest {
+                        predicted_cost,
+                        threshold,
+                    })
+                }
+                _ => None,
             };
             ControllerStatus::Reinserting {
                 task,
-                predicted_cost,
-                threshold,
+                last_test,
+                stack_velocity_norm: self.last_stack_velocity_norm,
             }
         } else if self.next_push < self.sequence_len() {
             ControllerStatus::Pushing {

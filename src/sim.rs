@@ -929,13 +929,25 @@ fn budget_outcome<const N: usize>(
     match controller.status() {
         ControllerStatus::Reinserting {
             task,
-            predicted_cost,
-            threshold,
+            last_test: Some(test),
+            ..
         } => Outcome::Stalled {
             task,
             reason: format!(
                 "{} was removed and its re-insertion was refused to the end: the cost predicted with it back is \
-                 {predicted_cost:.2e} > {threshold:.2e} (task errors: {error_list})",
+                 {:.2e} > {:.2e} (task errors: {error_list})",
+                task_names[task], test.predicted_cost, test.threshold
+            ),
+        },
+        ControllerStatus::Reinserting {
+            task,
+            last_test: None,
+            stack_velocity_norm,
+        } => Outcome::Stalled {
+            task,
+            reason: format!(
+                "{} was removed and its re-insertion was never tested (a test waits for the stack to settle and for \
+                 the task's dwell): ‖q̇_n‖ = {stack_velocity_norm:.2e} at the end (task errors: {error_list})",
                 task_names[task]
             ),
         },

@@ -315,6 +315,54 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
     assert_continuous_at_events(&run, 0.01);
 }
 
+/// A removed task is tested for re-insertion only once the stack has settled and its dwell has passed (D7). Until then
+/// the controller's status says that it has not been tested — no sentinel value in place of a prediction — with the
+/// stack velocity it waits on; once refused, the status carries the prediction and the threshold it exceeded.
+#[test]
+fn a_removed_task_reports_no_test_until_it_is_tested() {
+    let (tasks, mut values) = tasks_and_values();
+    let limits = limits();
+    let law = ControlLaw::with_default_transition(&values, 1.0).unwrap();
+    let mut controller = StackController::new(ControllerParameters::default(), &values).unwrap();
+    let cost: Option<&dyn Cost<3>> = Some(&limits);
+    let (dt, mut q) = (0.01, JointVector::<3>::new(0.2, -0.2, 0.1));
+    let (mut removed, mut refused) = (None, None);
+    for iteration in 0..4000 {
+        evaluate(&tasks, &mut values, &q);
+        let step = controller
+            .step(&law, &values, cost, &q, iteration, iteration as f64 * dt)
+            .unwrap();
+        q += step.velocity * dt;
+        let status = controller.status();
+        if removed.is_none() && step.event == Some(EventKind::Remove) {
+            // Just removed, with the robot still moving: not tested yet.
+            match status {
+                ControllerStatus::Reinserting {
+                    task: 1,
+                    last_test: None,
+                    stack_velocity_norm,
+                } => assert!(stack_velocity_norm > 0.0 && stack_velocity_norm.is_finite()),
+                other => panic!("after the removal: {other:?}"),
+            }
+            removed = Some(iteration);
+        }
+        if let ControllerStatus::Reinserting {
+            task: 1,
+            last_test: Some(test),
+            ..
+        } = status
+        {
+            refused = Some((iteration, test));
+            break;
+        }
+    }
+    let removed = removed.expect("the unachievable task is removed");
+    let (tested, test) = refused.expect("its re-insertion is tested and refused");
+    assert!(tested > removed);
+    assert!(test.threshold > 0.0 && test.threshold.is_finite());
+    assert!(test.predicted_cost > test.threshold, "{test:?}");
+}
+
 /// The same unachievable task with the default `hold_before_limit`: where the run above reaches the limit once its last
 /// resorts are spent, the controller drops every task instead (D13 hold), the law is the avoidance alone, and the
 /// limit is kept to the end of the 40 s. Without the hold the same run crosses it (the test above).
