@@ -388,3 +388,26 @@ fn missing_file_is_an_io_error() {
     let error = Scenario::from_file(Path::new("/nonexistent/scenario.toml")).unwrap_err();
     assert!(matches!(error, ScenarioError::Io { .. }));
 }
+
+/// `Scenario::joint_kinds` reads the robot's joints base to tip without a generic call: the Afma6 is a gantry (three
+/// prismatic joints, then a three-revolute wrist), the UR5e six revolute joints, the seven-joint test chain a rail,
+/// turret, shoulder, slide, continuous roll, pitch and wrist.
+#[test]
+fn joint_kinds_name_each_joint_of_the_scenario_robot() {
+    use servostack::robot::JointKind::{Continuous, Prismatic, Revolute};
+    let kinds = |file: &str| {
+        Scenario::from_file(&assets().join(file))
+            .unwrap()
+            .joint_kinds()
+            .unwrap()
+    };
+    assert_eq!(
+        kinds("paper_afma6.toml"),
+        [Prismatic, Prismatic, Prismatic, Revolute, Revolute, Revolute]
+    );
+    assert_eq!(kinds("ur5e.toml"), [Revolute; 6]);
+    assert_eq!(
+        kinds("rail7_limits.toml"),
+        [Prismatic, Revolute, Revolute, Prismatic, Continuous, Revolute, Revolute]
+    );
+}
