@@ -203,6 +203,14 @@ impl AvoidanceProjection {
         let mut projected = gradient - g * (g.dot(gradient) / g_sq);
         projected *= weight;
         projected.axpy(1.0 - weight, &kernel, 1.0);
+        // Locked joints stay still (D26).
+        for (value, _) in projected
+            .iter_mut()
+            .zip(solution.locked_joints())
+            .filter(|(_, &l)| l)
+        {
+            *value = 0.0;
+        }
         Ok(projected)
     }
 }
@@ -394,6 +402,18 @@ impl<const N: usize> ControlWorkspace<N> {
     /// The stack solution of the last step (`q̇_n`, `P^A_n`, per-level diagnostics).
     pub fn stack_solution(&self) -> &StackSolution<N> {
         self.stack.solution()
+    }
+
+    /// Holds the joints marked `true` still in the next steps' stack and avoidance term ([D26](crate::theory#d26),
+    /// [`StackWorkspace::lock_joints`]). A change of the locked set is a change of the law: the caller passes
+    /// [`StackChange::Changed`] at the step that follows, so that the velocity stays continuous (D1).
+    pub fn lock_joints(&mut self, locked: &[bool; N]) {
+        self.stack.lock_joints(locked);
+    }
+
+    /// The joints the next steps hold still.
+    pub fn locked_joints(&self) -> &[bool; N] {
+        self.stack.locked_joints()
     }
 
     /// The transition state (`τ`, `q̇(τ⁻)`).

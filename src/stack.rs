@@ -166,9 +166,16 @@ pub struct StackSolution<const N: usize> {
     velocity: JointVector<N>,
     projector: JointMatrix<N>,
     levels: Vec<LevelDiagnostics>,
+    locked: [bool; N],
 }
 
 impl<const N: usize> StackSolution<N> {
+    /// The joints the solve held still ([D26](crate::theory#d26)): `P^A_0 = I − Σ_{i locked} e_i e_iᵀ`, so `q̇_n`
+    /// and `P^A_n` are zero on them.
+    pub fn locked_joints(&self) -> &[bool; N] {
+        &self.locked
+    }
+
     /// The stack velocity `q̇_n` of [\[M14\]](crate::theory#m14) (m/s or rad/s per joint), without transition or avoidance terms.
     pub fn velocity(&self) -> &JointVector<N> {
         &self.velocity
@@ -203,6 +210,8 @@ pub struct StackWorkspace<const N: usize> {
     /// task of the peer scene) does not pay for a failed attempt at every step.
     try_certified: Vec<bool>,
     step: JointVector<N>,
+    /// The joints held still by the next solves ([`Self::lock_joints`]).
+    locked: [bool; N],
     solution: StackSolution<N>,
 }
 
@@ -221,10 +230,12 @@ impl<const N: usize> StackWorkspace<N> {
             svds: vec![ColumnSvd::default(); max_levels],
             try_certified: vec![true; max_levels],
             step: JointVector::zeros(),
+            locked: [false; N],
             solution: StackSolution {
                 velocity: JointVector::zeros(),
                 projector: JointMatrix::identity(),
                 levels: Vec::with_capacity(max_levels),
+                locked: [false; N],
             },
         }
     }
@@ -232,6 +243,18 @@ impl<const N: usize> StackWorkspace<N> {
     /// The result of the last solve (unspecified after a failed one).
     pub fn solution(&self) -> &StackSolution<N> {
         &self.solution
+    }
+
+    /// Holds the joints marked `true` still in the next solves ([D26](crate::theory#d26)): the stack starts from
+    /// `P^A_0 = I − Σ_{i locked} e_i e_iᵀ` instead of `I`, so every level, and the avoidance term through `P^A_n`, moves
+    /// only the other joints. All `false` (the default) is the stack of [\[M14\]](crate::theory#m14).
+    pub fn lock_joints(&mut self, locked: &[bool; N]) {
+        self.locked = *locked;
+    }
+
+    /// The joints the next solves hold still.
+    pub fn locked_joints(&self) -> &[bool; N] {
+        &self.locked
     }
 }
 
@@ -277,23 +300,31 @@ pub fn solve_stack<'w, const N: usize>(
         svds,
         try_certified,
         step,
+        locked,
         solution,
     } = workspace;
     solution.velocity.fill(0.0);
+    // P^A_0 = I, less the locked joints (D26)
     solution.projector.fill_with_identity();
-    solution.levels.clear();
+    solution.locked = *locked;
     let mut free = N; // rank of P^A_i
+    for (joint, _) in locked.iter().enumerate().filter(|(_, &l)| l) {
+        solution.projector[(joint, joint)] = 0.0;
+        free -= 1;
+    }
+    solution.levels.clear();
     let levels = order.iter().enumerate().zip(svds.iter_mut());
     for (((level, &index), svd), try_certified) in levels.zip(try_certified.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
         let rows = task.rows();
         // r = −λ_i e_i − J_i q̇_{i−1}
-        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level, P^A_0 = I, q̇_0 = 0, read in place by the certified
-        // paths and copied only for the SVD), decomposed in place into W = J̃_i V. Both products with J_i come from
-        // one pass over its rows.
+        // J̃_i = J_i P^A_{i−1} (J_i itself at the first level when no joint is locked, P^A_0 = I, q̇_0 = 0, read in
+        // place by the certified paths and copied only for the SVD), decomposed in place into W = J̃_i V. Both
+        // products with J_i come from one pass over its rows.
         let mut r = residual.rows_mut(0, rows);
         let mut w = limited.rows_mut(0, rows);
-        if level > 0 {
+        let projected = level > 0 || free < N;
+        if projected {
             mul_rows_and_vector_to(
                 task.jacobian(),
                 &solution.projector,
@@ -305,7 +336,7 @@ pub fn solve_stack<'w, const N: usize>(
         } else {
             r.zip_apply(task.error(), |ri, ei| *ri = -task.gain() * ei);
         }
-        let limited_jacobian = if level == 0 {
+        let limited_jacobian = if !projected {
             task.jacobian().rows(0, rows)
         } else {
             w.rows(0, rows)
@@ -332,7 +363,7 @@ pub fn solve_stack<'w, const N: usize>(
         let (rank, smallest_kept_singular_value) = match certified {
             Some((rank, sigma_min)) => (rank, Some(sigma_min)),
             None => {
-                if level == 0 {
+                if !projected {
                     w.copy_from(task.jacobian());
                 }
                 svd.decompose_warm(&mut w, policy, scale)

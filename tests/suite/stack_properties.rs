@@ -238,6 +238,64 @@ fn closed_form_levels_match_the_svd<const N: usize>(
     Ok(())
 }
 
+/// D26: a stack solved with some joints locked (`P^A_0 = I − Σ e_i e_iᵀ`) is the stack of the same tasks whose
+/// Jacobians lose the locked columns: the same `q̇_n`, zero on the locked joints, and the same `P^A_n` less the locked
+/// directions (which the column-less stack leaves free). The reference goes through the unlocked solver, whose first
+/// level reads the Jacobian in place.
+fn locked_joints_are_the_stack_without_their_columns<const N: usize>(
+    data: &[f64],
+    rows: &[usize],
+    lock: &[bool],
+) -> Result<(), TestCaseError> {
+    let tasks = random_tasks::<N>(data, rows);
+    let locked: [bool; N] = std::array::from_fn(|i| lock[i]);
+    let without_columns: Vec<TaskValue<N>> = tasks
+        .iter()
+        .map(|task| {
+            let mut jacobian = task.jacobian().clone();
+            for (joint, _) in locked.iter().enumerate().filter(|(_, &l)| l) {
+                jacobian.column_mut(joint).fill(0.0);
+            }
+            TaskValue::from_parts("t", task.error().clone(), jacobian, task.gain()).unwrap()
+        })
+        .collect();
+    let mut workspace = StackWorkspace::new(&tasks);
+    workspace.lock_joints(&locked);
+    for k in 1..=tasks.len() {
+        // Away from the rank threshold, where two correct solvers may truncate differently.
+        let reference_matrix = augmented(&without_columns, k);
+        let singular_values = reference_matrix.clone().svd(false, false).singular_values;
+        let rank = reference_rank(&reference_matrix);
+        if singular_values.iter().any(|&s| s > 1e-9 && s < 1e-3) {
+            continue;
+        }
+        let order: Vec<usize> = (0..k).collect();
+        let solution =
+            solve_stack(&StackParameters::default(), &mut workspace, &tasks, &order).unwrap();
+        let (reference_velocity, reference_projector, _) = solve(&without_columns, &order);
+        let tolerance = 1e-9 * reference_velocity.norm().max(1.0);
+        prop_assert!(
+            (solution.velocity() - reference_velocity).amax() < tolerance,
+            "level {k}: q̇_n {} against {}",
+            solution.velocity(),
+            reference_velocity
+        );
+        let mut expected_projector = reference_projector;
+        for (joint, _) in locked.iter().enumerate().filter(|(_, &l)| l) {
+            expected_projector[(joint, joint)] -= 1.0;
+        }
+        prop_assert!((solution.projector() - expected_projector).amax() < 1e-9);
+        for (joint, _) in locked.iter().enumerate().filter(|(_, &l)| l) {
+            prop_assert_eq!(solution.velocity()[joint], 0.0);
+            prop_assert!(solution.projector().row(joint).amax() < 1e-12);
+        }
+        let levels_rank: usize = solution.levels().iter().map(|l| l.rank).sum();
+        prop_assert_eq!(levels_rank, rank);
+        prop_assert_eq!(solution.locked_joints(), &locked);
+    }
+    Ok(())
+}
+
 fn data(len: usize) -> impl Strategy<Value = Vec<f64>> {
     proptest::collection::vec(-1.0..1.0f64, len)
 }
@@ -268,6 +326,18 @@ proptest! {
     #[test]
     fn closed_form_levels_n7(d in data(120), exponent in 0.0..8.0f64) {
         closed_form_levels_match_the_svd::<7>(&d, &[2, 1, 1, 2, 1], 10f64.powf(-exponent))?;
+    }
+
+    #[test]
+    fn locked_joints_n6(d in data(120), lock in proptest::collection::vec(proptest::bool::weighted(0.3), 6)) {
+        locked_joints_are_the_stack_without_their_columns::<6>(&d, &[2, 1, 1, 2], &lock)?;
+        locked_joints_are_the_stack_without_their_columns::<6>(&d, &[8, 2], &lock)?;
+    }
+
+    #[test]
+    fn locked_joints_n7(d in data(120), lock in proptest::collection::vec(proptest::bool::weighted(0.3), 7)) {
+        locked_joints_are_the_stack_without_their_columns::<7>(&d, &[2, 1, 1, 2, 1], &lock)?;
+        locked_joints_are_the_stack_without_their_columns::<7>(&d, &[3, 3], &lock)?;
     }
 
     #[test]
