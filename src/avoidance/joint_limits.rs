@@ -133,6 +133,44 @@ impl<const N: usize> JointLimits<N> {
         scale
     }
 
+    /// The lock of [D26](crate::theory#d26): marks in `locked` every joint within `band · Δq_i` of a finite limit
+    /// (`band`, a fraction of the range) that `velocity` drives towards that limit, or past it; returns `true` when it
+    /// marked a joint not marked before. Joints already marked, unlimited joints and joints moving away stay as they
+    /// are.
+    pub fn lock_pressed_joints(
+        &self,
+        q: &JointVector<N>,
+        velocity: &JointVector<N>,
+        band: f64,
+        locked: &mut [bool; N],
+    ) -> bool {
+        let mut marked = false;
+        for (joint, lock) in locked.iter_mut().enumerate() {
+            if *lock || self.is_unlimited(joint) {
+                continue;
+            }
+            let width = band * self.range(joint);
+            let speed = velocity[joint];
+            let pressed = (speed < 0.0 && q[joint] - self.lower[joint] < width)
+                || (speed > 0.0 && self.upper[joint] - q[joint] < width);
+            if pressed {
+                *lock = true;
+                marked = true;
+            }
+        }
+        marked
+    }
+
+    /// `true` when some limited joint is within `band · Δq_i` of a limit, or past it: the only case where
+    /// [`Self::lock_pressed_joints`] can mark one.
+    pub fn any_within_band(&self, q: &JointVector<N>, band: f64) -> bool {
+        (0..N).any(|joint| {
+            let width = band * self.range(joint);
+            !self.is_unlimited(joint)
+                && (q[joint] - self.lower[joint] < width || self.upper[joint] - q[joint] < width)
+        })
+    }
+
     /// The scale of the velocity sent to the joints: `q̇` scaled uniformly into the robot's velocity limits
     /// (`|q̇_i| ≤ q̇_i^max`, [`velocity_limit_scale`]), then braked before the hard limits ([`Self::braking_scale`] at
     /// the rate `braking_rate`, s⁻¹; `+∞`: no braking). `s ∈ [0, 1]`, sent as `s q̇`.
@@ -379,6 +417,41 @@ mod tests {
             free.braking_scale(&q, &JointVector::<2>::new(100.0, 10.0), 5.0),
             0.5
         );
+    }
+
+    /// D26: a joint is locked when it is within the band of a limit and driven towards it (or past it); not when it
+    /// moves away, sits outside the band, is unlimited or already locked; the band is a fraction of each joint's range.
+    #[test]
+    fn lock_marks_the_joints_pressed_into_a_limit() {
+        let inf = f64::INFINITY;
+        let limits = JointLimits::<4>::new(
+            JointVector::<4>::new(-1.0, 0.0, -inf, -2.0),
+            JointVector::<4>::new(1.0, 0.1, inf, 2.0),
+            0.1,
+        )
+        .unwrap();
+        // Band 1e−3 of the range: 2e−3 rad on joint 0, 1e−4 m on joint 1, 4e−3 rad on joint 3.
+        let band = 1e-3;
+        let q = JointVector::<4>::new(-1.0 + 1.9e-3, 0.1 - 0.9e-4, 1e9, 2.0 - 4.1e-3);
+        assert!(limits.any_within_band(&q, band));
+        let mut locked = [false; 4];
+        let inwards = JointVector::<4>::new(-1.0, 1.0, 1.0, 1.0);
+        assert!(limits.lock_pressed_joints(&q, &inwards, band, &mut locked));
+        // Joint 3 is 4.1e−3 from its limit, outside its 4e−3 band; joint 2 has no limit.
+        assert_eq!(locked, [true, true, false, false]);
+        // Nothing new to mark: false, and the marks stay.
+        assert!(!limits.lock_pressed_joints(&q, &inwards, band, &mut locked));
+        assert_eq!(locked, [true, true, false, false]);
+        let mut locked = [false; 4];
+        assert!(!limits.lock_pressed_joints(&q, &-inwards, band, &mut locked));
+        assert_eq!(locked, [false; 4]);
+        // A joint past its limit and driven further out is locked too.
+        let past = JointVector::<4>::new(-1.1, 0.05, 0.0, 0.0);
+        assert!(limits.lock_pressed_joints(&past, &inwards, band, &mut locked));
+        assert_eq!(locked, [true, false, false, false]);
+        // Far from every limit, or with a zero band, nothing is within the band.
+        assert!(!limits.any_within_band(&JointVector::<4>::new(0.0, 0.05, 0.0, 0.0), band));
+        assert!(!limits.any_within_band(&q, 0.0));
     }
 
     /// An unlimited joint (a continuous joint) adds nothing to `h` or `∇h` however far it turns, is never violated,
