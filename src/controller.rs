@@ -86,6 +86,9 @@
 //! is outside the controller, where the velocity is sent: the **braking** of D25
 //! ([`ControllerParameters::braking_rate`], [`crate::avoidance::JointLimits::braking_scale`]), applied by the
 //! simulation and by [`crate::servo::VisualServo`], and reported back with [`StackController::set_sent_velocity`].
+//! Once braked at a limit, a joint the law still drives in is **locked** (D26, [`StackController::with_joint_limits`],
+//! [`ControllerParameters::lock_band`]): the law is solved again on the other joints, so the robot slides along the
+//! limit; the locks hold in the predictions too, and a change of the locked joints starts a transition (D1).
 //!
 //! **Criteria** (§6.3), for every stacked task `i` with its own Jacobian `J_i` and the gradient `g`:
 //!
@@ -101,7 +104,7 @@
 //! removals also record the prediction, the joint that dominates the predicted gradient, the cost term that dominates
 //! the predicted cost, and every task's criteria; re-insertions the prediction with the task back.
 
-use crate::avoidance::{Cost, CostError};
+use crate::avoidance::{Cost, CostError, JointLimits};
 use crate::bounds::DURATION_S;
 use crate::law::{
     control_step, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
@@ -266,7 +269,8 @@ pub struct ControllerParameters {
     /// (convergence-domain study, 200 draws per family, seed 1): 0 and 0.05 s⁻¹ give the Afma6's uniform starts 107
     /// and 101 converged, 0.2 s⁻¹ 69; the other families do not move.
     pub escape_growth_rate: f64,
-    /// Whether the controller **holds** rather than let the law cross a hard limit (D13; default `true`): after the
+    /// Whether the controller **holds** rather than let the law cross a hard limit (D13; default `false` since the
+    /// lock of D26, which lets the runs the hold would stop slide along the limit instead): after the
     /// fallback, when the configuration predicted `max(T, 1/μ)` ahead is past a hard limit (or loses the target, the
     /// last resort's other trigger) and no task can be removed (the last resorts are spent, or the one task left is
     /// the last), every task is dropped at once; the law is then
@@ -275,7 +279,8 @@ pub struct ControllerParameters {
     /// hold). The stack with gradient, the fallback's law, would cross the limit there, where a real robot stops with
     /// a fault. `false` keeps that law to the end. Measured on the uniform starts of the four scenarios (seeds 1–3):
     /// the runs that end past a hard limit fall from 75–181 to 3–77 of 200; as many draws converge within 0–2 and
-    /// the same draws a baseline wins are covered (theory D13, *hold*).
+    /// the same draws a baseline wins are covered (theory D13, *hold*). With the braking of D25 and the lock of D26 on,
+    /// the hold changes nothing but to stop, at the limit, runs that the lock would carry to the goal (theory D26).
     pub hold_before_limit: bool,
     /// `ξ` (s⁻¹), the braking rate of D25: whoever sends the full method's velocity to the joints (the simulation,
     /// [`crate::servo::VisualServo`]) scales it uniformly so that every joint moving towards a hard limit keeps
@@ -288,6 +293,13 @@ pub struct ControllerParameters {
     /// past a hard limit (8–149 per study before), every family but the uniform starts unchanged, and there 0–13 more
     /// draws converge; 5 and 20 s⁻¹ give the same figures within 3 draws (theory D25).
     pub braking_rate: f64,
+    /// `δ`, the lock band of D26 as a fraction of each joint's range: a joint closer than `δ Δq_i` to a hard limit
+    /// that the law drives towards it is held still, and the stack is solved on the other joints
+    /// ([`crate::stack::StackWorkspace::lock_joints`]); the robot slides along the limit instead of stopping at it
+    /// (the braking of D25 stops it there). Needs the limits ([`StackController::with_joint_limits`]); `0` switches
+    /// the lock off. Default `10⁻⁵` (a joint reaches the band only after the braking has slowed it down); valid in
+    /// `[0, 0.5)`.
+    pub lock_band: f64,
 }
 
 impl Default for ControllerParameters {
@@ -311,8 +323,9 @@ impl Default for ControllerParameters {
             escape_achieved_error: 1e-3,
             escape_error: 0.005,
             escape_growth_rate: 0.0,
-            hold_before_limit: true,
+            hold_before_limit: false,
             braking_rate: 5.0,
+            lock_band: 1e-5,
         }
     }
 }
@@ -437,6 +450,13 @@ impl ControllerParameters {
             v,
             !v.is_nan() && v > 0.0,
             "> 0 (+∞: no braking)",
+        )?;
+        let v = self.lock_band;
+        check(
+            "lock_band",
+            v,
+            (0.0..0.5).contains(&v),
+            "in [0, 0.5) (0: no lock)",
         )?;
         Ok(())
     }
@@ -666,6 +686,8 @@ pub struct StackController<const N: usize> {
     last_change_time: f64,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,
+    /// The hard limits the lock of D26 slides along ([`Self::with_joint_limits`]).
+    limits: Option<JointLimits<N>>,
     law_workspace: ControlWorkspace<N>,
     trial_workspace: StackWorkspace<N>,
     trial_order: Vec<usize>,
@@ -757,6 +779,7 @@ impl<const N: usize> StackController<N> {
             last_change_time: 0.0,
             last_removal_time: f64::NEG_INFINITY,
             last_stack_velocity_norm: f64::INFINITY,
+            limits: None,
             law_workspace: ControlWorkspace::new(tasks),
             trial_workspace: StackWorkspace::new(tasks),
             trial_order: Vec::with_capacity(count),
@@ -787,6 +810,16 @@ impl<const N: usize> StackController<N> {
             *flag = true;
         }
         Ok(self)
+    }
+
+    /// The controller that slides along the hard limits `limits` (D26, [`ControllerParameters::lock_band`]): at each
+    /// iteration, a joint within the lock band that the law drives towards its limit is held still and the stack is
+    /// solved again on the other joints, until no joint in the band is driven in. The same locks hold in the
+    /// controller's predictions, so that its settling and its re-insertion tests see the law it sends. A change of
+    /// the locked joints starts a transition (D1), as a stack change does. Without limits, nothing is locked.
+    pub fn with_joint_limits(mut self, limits: JointLimits<N>) -> Self {
+        self.limits = Some(limits);
+        self
     }
 
     /// The controller with the last task of the list held in reserve (D23): it is not pushed in sequence; once the
@@ -956,16 +989,24 @@ impl<const N: usize> StackController<N> {
             self.push_next(iteration, time);
             self.change_pending = true;
         }
-        let change = if self.change_pending {
+        // The transition memory before this step, restored if nothing is sent; its velocity is q̇(τ⁻) of a change
+        // decided at this iteration.
+        let memory = self.law_workspace.memory();
+        let locks_before = *self.law_workspace.locked_joints();
+        let velocity_sent_before = memory.1;
+        let locks_changed = match self.update_locks(law, tasks, cost, q) {
+            Ok(changed) => changed,
+            Err(error) => {
+                self.lock_joints(&locks_before);
+                return Err(error);
+            }
+        };
+        let change = if self.change_pending || locks_changed {
             StackChange::Changed
         } else {
             StackChange::Unchanged
         };
-        // The transition memory before this step, restored if nothing is sent; its velocity is q̇(τ⁻) of a change
-        // decided at this iteration.
-        let memory = self.law_workspace.memory();
-        let velocity_sent_before = memory.1;
-        let output = control_step(
+        let output = match control_step(
             law,
             &mut self.law_workspace,
             tasks,
@@ -974,8 +1015,13 @@ impl<const N: usize> StackController<N> {
             q,
             time,
             change,
-        )?
-        .clone();
+        ) {
+            Ok(output) => output.clone(),
+            Err(error) => {
+                self.lock_joints(&locks_before);
+                return Err(error.into());
+            }
+        };
         self.change_pending = false;
         if change == StackChange::Changed {
             self.note_law_jump(iteration, &output, &velocity_sent_before);
@@ -996,6 +1042,7 @@ impl<const N: usize> StackController<N> {
             Ok(event) => event,
             Err(error) => {
                 self.law_workspace.restore(memory);
+                self.lock_joints(&locks_before);
                 self.change_pending = change == StackChange::Changed;
                 return Err(error);
             }
@@ -1028,6 +1075,50 @@ impl<const N: usize> StackController<N> {
             result.event = Some(kind);
         }
         Ok(result)
+    }
+
+    /// D26: the joints to hold still at this iteration, from none: while the law `u` of the current stack, solved
+    /// with the joints locked so far, drives a joint within the lock band towards its limit, that joint is locked too
+    /// (at most `N` rounds; the set only grows, and a joint is released as soon as the law no longer presses it). The
+    /// set goes to the law and to the predictions; `true` when it differs from the last iteration's.
+    fn update_locks(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: Option<&dyn Cost<N>>,
+        q: &JointVector<N>,
+    ) -> Result<bool, ControllerError> {
+        let mut locked = [false; N];
+        let band = self.parameters.lock_band;
+        // A copy (two joint vectors, no allocation), only near a limit: the solves below borrow the controller.
+        let near_limit = self
+            .limits
+            .as_ref()
+            .filter(|limits| band > 0.0 && limits.any_within_band(q, band));
+        if let Some(limits) = near_limit.cloned() {
+            let mut gradient = JointVector::zeros();
+            if let Some(cost) = cost {
+                cost.value_and_gradient(q, &mut gradient)?;
+            }
+            self.trial_order.clear();
+            self.trial_order.extend_from_slice(&self.stacked);
+            for _ in 0..=N {
+                self.trial_workspace.lock_joints(&locked);
+                let velocity = self.trial_law(law, tasks, cost.map(|_| &gradient))?;
+                if !limits.lock_pressed_joints(q, &velocity, band, &mut locked) {
+                    break;
+                }
+            }
+        }
+        let changed = locked != *self.law_workspace.locked_joints();
+        self.lock_joints(&locked);
+        Ok(changed)
+    }
+
+    /// Locks `locked` in the law and in the predictions (D26).
+    fn lock_joints(&mut self, locked: &[bool; N]) {
+        self.law_workspace.lock_joints(locked);
+        self.trial_workspace.lock_joints(locked);
     }
 
     /// Fills `law_jump` of the event made at `iteration`: `‖u(τ) − q̇(τ⁻)‖`.
@@ -1391,8 +1482,10 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(None, Some(task));
-            let without =
-                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let without = prediction.after_change(
+                &self.trial_law(law, tasks, Some(prediction.gradient))?,
+                horizon,
+            );
             let predicted_without = self.predicted_value(cost, &without)?;
             if !robust {
                 return Ok(Some((task, predicted_without)));
@@ -1495,8 +1588,10 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(Some(task), None);
-            let back =
-                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+            let back = prediction.after_change(
+                &self.trial_law(law, tasks, Some(prediction.gradient))?,
+                horizon,
+            );
             let predicted_back = self.predicted_value(cost, &back)?;
             if accept(predicted_back) {
                 return Ok(Some((task, predicted_back)));
@@ -1521,12 +1616,12 @@ impl<const N: usize> StackController<N> {
         }
     }
 
-    /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order`.
+    /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order` (`u = q̇_n` without a cost's gradient).
     fn trial_law(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
-        gradient: &JointVector<N>,
+        gradient: Option<&JointVector<N>>,
     ) -> Result<JointVector<N>, ControllerError> {
         let solution = solve_stack(
             law.stack_parameters(),
@@ -1535,8 +1630,11 @@ impl<const N: usize> StackController<N> {
             &self.trial_order,
         )
         .map_err(LawError::from)?;
-        let avoidance = law.avoidance_term(solution, tasks, &self.trial_order, gradient)?;
-        Ok(solution.velocity() + avoidance)
+        let mut velocity = *solution.velocity();
+        if let Some(gradient) = gradient {
+            velocity += law.avoidance_term(solution, tasks, &self.trial_order, gradient)?;
+        }
+        Ok(velocity)
     }
 
     /// D5: the stack velocity is below `epsilon_add` and the last transition has died out.
@@ -1612,8 +1710,10 @@ impl<const N: usize> StackController<N> {
                         }
                         _ => self.parameters.prediction_horizon,
                     };
-                    let back = prediction
-                        .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                    let back = prediction.after_change(
+                        &self.trial_law(law, tasks, Some(prediction.gradient))?,
+                        horizon,
+                    );
                     self.predicted_value(cost, &back)?
                 }
                 _ => 0.0,
@@ -1736,8 +1836,10 @@ impl<const N: usize> StackController<N> {
                 }
                 self.set_trial_stack(Some(back), Some(out));
                 let horizon = self.parameters.reinsertion_look_ahead / back_gain;
-                let swapped = prediction
-                    .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
+                let swapped = prediction.after_change(
+                    &self.trial_law(law, tasks, Some(prediction.gradient))?,
+                    horizon,
+                );
                 let predicted_cost = self.predicted_value(cost, &swapped)?;
                 if predicted_cost <= threshold {
                     return Ok(Some((back, out, predicted_cost)));

@@ -936,7 +936,8 @@ impl Scenario {
             ..StackParameters::default()
         };
         let law = ControlLaw::with_stack_parameters(stack, mu, kappa)?;
-        // The baselines are the paper's laws as they are: no removal, and no braking before the limits (D25).
+        // The baselines are the paper's laws as they are: no removal, no braking before the limits (D25) and no
+        // lock along them (D26).
         let full_method = kind == RunKind::StackController;
         let controller = ControllerParameters {
             allow_removal: full_method,
@@ -944,6 +945,11 @@ impl Scenario {
                 self.controller.braking_rate
             } else {
                 f64::INFINITY
+            },
+            lock_band: if full_method {
+                self.controller.lock_band
+            } else {
+                0.0
             },
             ..self.controller
         };

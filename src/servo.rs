@@ -556,16 +556,17 @@ impl<const N: usize> VisualServo<N> {
         } else {
             &[]
         };
-        let mut controller =
-            StackController::new(config.controller, &values)?.with_protected_tasks(protected)?;
-        if matches!(config.tasks, TaskChoice::Sequence { .. }) {
-            controller = controller.with_reserve_task()?;
-        }
         let limits = JointLimits::new(
             *config.chain.lower_limits(),
             *config.chain.upper_limits(),
             config.activation_ratio,
         )?;
+        let mut controller = StackController::new(config.controller, &values)?
+            .with_protected_tasks(protected)?
+            .with_joint_limits(limits.clone());
+        if matches!(config.tasks, TaskChoice::Sequence { .. }) {
+            controller = controller.with_reserve_task()?;
+        }
         let estimator = config.depth.estimator(4)?;
         let task_count = tasks.len();
         let mut task_gains = [0.0; MAX_TASKS];

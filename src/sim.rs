@@ -10,7 +10,8 @@
 //!    run as **feature lost**;
 //! 3. every visual task is evaluated (`e_i`, `L_i`, `J_i`, [\[M42\]](crate::theory#m42)); when the stack is complete and the error of
 //!    every task is below the convergence threshold, the run has **converged**;
-//! 4. one controller iteration ([`StackController::step`]) gives `q̇`, scaled uniformly into the robot's velocity limits
+//! 4. one controller iteration ([`StackController::step`], given the scene's limits: for the full method, a joint
+//!    braked onto a limit that the law drives in is locked, D26) gives `q̇`, scaled uniformly into the robot's velocity limits
 //!    and, for the full method, braked before the hard limits (D25,
 //!    [`ControllerParameters::braking_rate`](crate::controller::ControllerParameters::braking_rate)); the controller is
 //!    told what was sent; explicit Euler `q ← q + Δt q̇`;
@@ -1250,7 +1251,8 @@ pub fn simulate_with<const N: usize>(
         .map(|s| SensingState::new(s, scene, parameters.period))
         .transpose()?;
     let mut controller = StackController::new(drive.controller, &values)?
-        .with_protected_tasks(drive.protected_tasks)?;
+        .with_protected_tasks(drive.protected_tasks)?
+        .with_joint_limits(scene.limits.clone());
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }

@@ -363,13 +363,16 @@ fn a_removed_task_reports_no_test_until_it_is_tested() {
     assert!(test.predicted_cost > test.threshold, "{test:?}");
 }
 
-/// The same unachievable task with the default `hold_before_limit`: where the run above reaches the limit once its last
-/// resorts are spent, the controller drops every task instead (D13 hold), the law is the avoidance alone, and the
-/// limit is kept to the end of the 40 s. Without the hold the same run crosses it (the test above).
+/// The same unachievable task with `hold_before_limit` (an option, off by default since the lock of D26): where the
+/// run above reaches the limit once its last resorts are spent, the controller drops every task instead (D13 hold),
+/// the law is the avoidance alone, and the limit is kept to the end of the 40 s. Without the hold the same run crosses
+/// it (the test above).
 #[test]
 fn holding_keeps_the_limit_an_unachievable_task_would_cross() {
-    let parameters = ControllerParameters::default();
-    assert!(parameters.hold_before_limit);
+    let parameters = ControllerParameters {
+        hold_before_limit: true,
+        ..ControllerParameters::default()
+    };
     let run = run(parameters, 1.0);
     assert_eq!(run.hit, None, "events: {:?}", run.events);
     let holds: Vec<usize> = run
@@ -737,7 +740,16 @@ fn invalid_parameters_and_task_count() {
             "braking_rate",
         )
     });
-    for (parameters, expected) in cases.into_iter().chain(braking) {
+    let lock = [f64::NAN, -1e-6, 0.5, f64::INFINITY].map(|lock_band| {
+        (
+            ControllerParameters {
+                lock_band,
+                ..Default::default()
+            },
+            "lock_band",
+        )
+    });
+    for (parameters, expected) in cases.into_iter().chain(braking).chain(lock) {
         match StackController::new(parameters, &values) {
             Err(ControllerError::InvalidParameter { name, .. }) => assert_eq!(name, expected),
             other => panic!("{expected}: expected InvalidParameter, got {other:?}"),

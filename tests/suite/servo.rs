@@ -833,47 +833,84 @@ fn the_classical_task_converges_on_the_peer_scene() {
     assert!(mm < 0.1 && deg < 0.01, "{mm} mm, {deg}°");
 }
 
-/// D25 through the façade: with the last wrist joint's lower limit raised above its goal (−0.2 rad against −0.397),
-/// the classical task drives it into that limit. Unbraked, the robot crosses it; braked (the default), every joint
-/// moving towards a limit keeps `|q̇_i| ≤ ξ d_i`, the braking acts, and no limit is crossed.
-#[test]
-fn the_servo_brakes_before_a_hard_limit() {
-    let (scenario, experiment) = paper();
-    let camera = distorted_camera(&experiment.scene);
-    let mut config = paper_config(&scenario, &experiment, camera);
-    config.tasks = TaskChoice::Classical {
-        gain: scenario.tasks.classical_gain,
-        fourth: FourthTask::Auto,
-    };
-    let mut lower = *config.chain.lower_limits();
-    lower[5] = -0.2;
-    let upper = *config.chain.upper_limits();
-    config.chain = config.chain.clone().with_limits(lower, upper).unwrap();
-    let limits = JointLimits::new(lower, upper, config.activation_ratio).unwrap();
-    let rate = config.controller.braking_rate;
-    assert!(rate.is_finite());
-    let run = |config: ServoConfig<6>, check: &mut dyn FnMut(&ServoOutput<6>, &JointVector<6>)| {
+/// The classical task of the paper scenario through the façade, with the last wrist joint's lower limit raised above
+/// its goal (−0.2 rad against −0.397): the task drives that joint into its limit.
+struct RaisedWristLimit {
+    config: ServoConfig<6>,
+    limits: JointLimits<6>,
+    scene: Scene<6>,
+    camera: CalibratedCamera,
+    start: JointVector<6>,
+}
+
+impl RaisedWristLimit {
+    fn new() -> Self {
+        let (scenario, experiment) = paper();
+        let camera = distorted_camera(&experiment.scene);
+        let mut config = paper_config(&scenario, &experiment, camera);
+        config.tasks = TaskChoice::Classical {
+            gain: scenario.tasks.classical_gain,
+            fourth: FourthTask::Auto,
+        };
+        let mut lower = *config.chain.lower_limits();
+        lower[5] = -0.2;
+        let upper = *config.chain.upper_limits();
+        config.chain = config.chain.clone().with_limits(lower, upper).unwrap();
+        let limits = JointLimits::new(lower, upper, config.activation_ratio).unwrap();
+        Self {
+            config,
+            limits,
+            scene: experiment.scene,
+            camera,
+            start: experiment.start,
+        }
+    }
+
+    /// Runs `config` for up to 3000 periods, calling `check` on each output (with the servo, before the velocity is
+    /// applied, and the allocations the step made); returns whether a limit was crossed and the last output.
+    fn run(
+        &self,
+        config: ServoConfig<6>,
+        check: &mut dyn FnMut(&VisualServo<6>, &ServoOutput<6>, &JointVector<6>, usize),
+    ) -> (bool, ServoOutput<6>) {
         let mut servo = VisualServo::new(config).unwrap();
-        let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, 0.01);
+        let mut plant = Plant::new(self.scene.clone(), self.camera, self.start, 0.01);
+        let mut last = None;
         for _ in 0..3000 {
             let pixels = plant.pixels();
-            let output = *servo.step(plant.time(), &pixels, &plant.q).unwrap();
-            check(&output, &plant.q);
+            let mut output = None;
+            let allocations = allocations_during(|| {
+                output = Some(*servo.step(plant.time(), &pixels, &plant.q).unwrap());
+            });
+            let output = output.unwrap();
+            check(&servo, &output, &plant.q, allocations);
             plant.apply(&output.velocity);
-            if limits.violated_joint(&plant.q).is_some() {
-                return true;
+            last = Some(output);
+            if self.limits.violated_joint(&plant.q).is_some() {
+                return (true, output);
             }
         }
-        false
-    };
-    let mut unbraked = config.clone();
+        (false, last.unwrap())
+    }
+}
+
+/// D25 through the façade: the classical task drives the last wrist joint into a raised lower limit. Unbraked, the
+/// robot crosses it; braked (the default), every joint moving towards a limit keeps `|q̇_i| ≤ ξ d_i`, the braking
+/// acts, and no limit is crossed.
+#[test]
+fn the_servo_brakes_before_a_hard_limit() {
+    let setup = RaisedWristLimit::new();
+    let rate = setup.config.controller.braking_rate;
+    assert!(rate.is_finite());
+    let (lower, upper) = (*setup.limits.lower(), *setup.limits.upper());
+    let mut unbraked = setup.config.clone();
     unbraked.controller.braking_rate = f64::INFINITY;
     assert!(
-        run(unbraked, &mut |_, _| {}),
+        setup.run(unbraked, &mut |_, _, _, _| {}).0,
         "the classical law no longer reaches the limit"
     );
     let mut braked = 0;
-    let crossed = run(config, &mut |output, q| {
+    let (crossed, _) = setup.run(setup.config.clone(), &mut |_, output, q, _| {
         for i in 0..6 {
             let v = output.velocity[i];
             let distance = if v > 0.0 {
@@ -890,6 +927,57 @@ fn the_servo_brakes_before_a_hard_limit() {
     });
     assert!(!crossed, "a limit was crossed with the braking");
     assert!(braked > 10, "braked at {braked} periods only");
+}
+
+/// D26 through the façade: braked at its raised limit, the wrist joint is locked (the default; the step allocates
+/// nothing) and the five other joints go on reducing the task error, which ends well below where the braking alone
+/// stops the robot; no limit is crossed. Each change of the locked joints starts a transition: the velocity sent
+/// never jumps, although the law does at the change.
+#[test]
+fn the_servo_slides_along_a_hard_limit() {
+    let setup = RaisedWristLimit::new();
+    assert!(setup.config.controller.lock_band > 0.0);
+    let mut braked_only = setup.config.clone();
+    braked_only.controller.lock_band = 0.0;
+    let (crossed, stopped) = setup.run(braked_only, &mut |_, _, _, _| {});
+    assert!(!crossed);
+    let mut locked_periods = 0;
+    let mut previous: Option<([bool; 6], JointVector<6>)> = None;
+    // At the periods where the locked joints change: the largest step of the velocity sent, and of the law.
+    let (mut largest_law_jump, mut largest_step): (f64, f64) = (0.0, 0.0);
+    let mut allocating_locked_steps = 0;
+    let (crossed, slid) = setup.run(
+        setup.config.clone(),
+        &mut |servo, output, _, allocations| {
+            let workspace = servo.controller().law_workspace();
+            let locked = *workspace.locked_joints();
+            locked_periods += usize::from(locked[5]);
+            // The lock is part of the real-time step: nothing allocated while it acts.
+            allocating_locked_steps += usize::from(locked[5] && allocations > 0);
+            assert!(!locked[..5].contains(&true), "{locked:?}");
+            if let Some((locked_before, sent_before)) = previous {
+                if locked != locked_before {
+                    let law = workspace.last_output().law();
+                    largest_step = largest_step.max((output.velocity - sent_before).norm());
+                    largest_law_jump = largest_law_jump.max((law - sent_before).norm());
+                }
+            }
+            previous = Some((locked, output.velocity));
+        },
+    );
+    assert!(!crossed, "a limit was crossed with the lock");
+    assert!(locked_periods > 100, "locked at {locked_periods} periods");
+    assert_eq!(allocating_locked_steps, 0);
+    assert!(
+        slid.error_norm < 0.5 * stopped.error_norm,
+        "error {} with the lock, {} stopped by the braking",
+        slid.error_norm,
+        stopped.error_norm
+    );
+    assert!(
+        largest_law_jump > 0.01 && largest_step < 0.01 * largest_law_jump,
+        "largest step {largest_step} for a law jump of {largest_law_jump} at a lock change"
+    );
 }
 
 /// Invalid configurations are named errors at construction.
