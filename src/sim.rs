@@ -972,9 +972,27 @@ fn budget_outcome<const N: usize>(
                 task_names[task]
             ),
         },
-        ControllerStatus::Complete => Outcome::MaxIterations {
-            reason: format!("every task stacked; task errors at the end: {error_list}"),
-        },
+        ControllerStatus::Complete => {
+            // The joints held at a limit at the end (D26): the tasks were pressing them into it.
+            let locked = controller.law_workspace().locked_joints();
+            let locked_list = (0..N)
+                .filter(|&joint| locked[joint])
+                .map(|joint| joint.to_string())
+                .collect::<Vec<_>>();
+            let locked_note = if locked_list.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; locked at a hard limit, the tasks pressing them in: joint {}",
+                    locked_list.join(", ")
+                )
+            };
+            Outcome::MaxIterations {
+                reason: format!(
+                    "every task stacked; task errors at the end: {error_list}{locked_note}"
+                ),
+            }
+        }
     }
 }
 
@@ -1507,4 +1525,48 @@ pub fn simulate_with<const N: usize>(
         limits: scene.limits.clone(),
         totals,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::law::ControlLaw;
+    use crate::task::TaskJacobian;
+    use nalgebra::DVector;
+
+    /// D26: a run whose budget ends with every task stacked names the joints its tasks hold locked at a limit, and
+    /// only those.
+    #[test]
+    fn a_budget_that_ends_with_a_locked_joint_names_it() {
+        // One task driving joint 1 down (e = 1, J = [0, 1]: q̇ = −λ J⁺ e = (0, −1)).
+        let jacobian = TaskJacobian::<2>::from_row_slice(&[0.0, 1.0]);
+        let tasks = [
+            TaskValue::from_parts("reach", DVector::from_element(1, 1.0), jacobian, 1.0).unwrap(),
+        ];
+        let limits = JointLimits::new(
+            JointVector::<2>::new(-1.0, -1.0),
+            JointVector::<2>::new(1.0, 1.0),
+            0.1,
+        )
+        .unwrap();
+        let law = ControlLaw::new(10.0, 0.0).unwrap();
+        let reason_at = |q: JointVector<2>| {
+            let mut controller = StackController::new(ControllerParameters::default(), &tasks)
+                .unwrap()
+                .with_joint_limits(limits.clone());
+            controller.step(&law, &tasks, None, &q, 0, 0.01).unwrap();
+            assert!(controller.is_complete());
+            match budget_outcome(&controller, &["reach".to_string()], None) {
+                Outcome::MaxIterations { reason } => reason,
+                other => panic!("{other:?}"),
+            }
+        };
+        let at_limit = reason_at(JointVector::<2>::new(0.0, -1.0));
+        assert!(
+            at_limit.ends_with("locked at a hard limit, the tasks pressing them in: joint 1"),
+            "{at_limit}"
+        );
+        let inside = reason_at(JointVector::<2>::new(0.0, -0.5));
+        assert!(!inside.contains("locked"), "{inside}");
+    }
 }
