@@ -424,6 +424,10 @@ pub struct ServoOutput<const N: usize> {
     /// for good, the velocity is the joint-limit avoidance's alone (the arm comes to rest inside its limits), and the
     /// goal will not be reached from here; the application should stop servoing and plan another approach.
     pub held: bool,
+    /// The joints the controller holds still at a hard limit this period, because the tasks drive them into it (the
+    /// lock of [D26](crate::theory#d26), [`crate::controller::ControllerParameters::lock_band`]): the other joints carry
+    /// on, and a task that needs a locked joint is achieved only in least squares.
+    pub locked: [bool; N],
     /// `‖q̇_n‖`, the norm of the stack velocity without transition and avoidance (mixed rad/s and m/s): the controller
     /// pushes the next task, or tries to put a removed one back, once it is below
     /// [`ControllerParameters::settle_velocity_with_removal`] ([D5](crate::theory#d5)).
@@ -609,6 +613,7 @@ impl<const N: usize> VisualServo<N> {
                 stack_len: 0,
                 event: None,
                 held: false,
+                locked: [false; N],
                 stack_velocity_norm: f64::NAN,
                 converged: false,
                 depths: [f64::NAN; 4],
@@ -836,6 +841,7 @@ impl<const N: usize> VisualServo<N> {
         output.error_norm = task_errors.iter().map(|e| e * e).sum::<f64>().sqrt();
         output.event = step.event;
         output.held = self.controller.is_held();
+        output.locked = *self.controller.law_workspace().locked_joints();
         output.stack_velocity_norm = step.stack_velocity_norm;
         let stacked = self.controller.stacked();
         output.stack_len = stacked.len().min(MAX_TASKS);

@@ -950,7 +950,8 @@ fn the_servo_slides_along_a_hard_limit() {
         setup.config.clone(),
         &mut |servo, output, _, allocations| {
             let workspace = servo.controller().law_workspace();
-            let locked = *workspace.locked_joints();
+            let locked = output.locked;
+            assert_eq!(&locked, workspace.locked_joints());
             locked_periods += usize::from(locked[5]);
             // The lock is part of the real-time step: nothing allocated while it acts.
             allocating_locked_steps += usize::from(locked[5] && allocations > 0);
