@@ -686,8 +686,6 @@ pub struct StackController<const N: usize> {
     last_change_time: f64,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,
-    /// The hard limits the lock of D26 slides along ([`Self::with_joint_limits`]).
-    limits: Option<JointLimits<N>>,
     law_workspace: ControlWorkspace<N>,
     trial_workspace: StackWorkspace<N>,
     trial_order: Vec<usize>,
@@ -779,7 +777,6 @@ impl<const N: usize> StackController<N> {
             last_change_time: 0.0,
             last_removal_time: f64::NEG_INFINITY,
             last_stack_velocity_norm: f64::INFINITY,
-            limits: None,
             law_workspace: ControlWorkspace::new(tasks),
             trial_workspace: StackWorkspace::new(tasks),
             trial_order: Vec::with_capacity(count),
@@ -817,9 +814,15 @@ impl<const N: usize> StackController<N> {
     /// solved again on the other joints, until no joint in the band is driven in. The same locks hold in the
     /// controller's predictions, so that its settling and its re-insertion tests see the law it sends. A change of
     /// the locked joints starts a transition (D1), as a stack change does. Without limits, nothing is locked.
-    pub fn with_joint_limits(mut self, limits: JointLimits<N>) -> Self {
-        self.limits = Some(limits);
-        self
+    ///
+    /// # Errors
+    /// None with a validated `lock_band` ([`ControllerError::Law`] otherwise).
+    pub fn with_joint_limits(mut self, limits: JointLimits<N>) -> Result<Self, ControllerError> {
+        let band = self.parameters.lock_band;
+        if band > 0.0 {
+            self.law_workspace.lock_at_limits(limits, band)?;
+        }
+        Ok(self)
     }
 
     /// The controller with the last task of the list held in reserve (D23): it is not pushed in sequence; once the
@@ -992,21 +995,13 @@ impl<const N: usize> StackController<N> {
         // The transition memory before this step, restored if nothing is sent; its velocity is q̇(τ⁻) of a change
         // decided at this iteration.
         let memory = self.law_workspace.memory();
-        let locks_before = *self.law_workspace.locked_joints();
-        let velocity_sent_before = memory.1;
-        let locks_changed = match self.update_locks(law, tasks, cost, q) {
-            Ok(changed) => changed,
-            Err(error) => {
-                self.lock_joints(&locks_before);
-                return Err(error);
-            }
-        };
-        let change = if self.change_pending || locks_changed {
+        let velocity_sent_before = *memory.velocity();
+        let change = if self.change_pending {
             StackChange::Changed
         } else {
             StackChange::Unchanged
         };
-        let output = match control_step(
+        let output = control_step(
             law,
             &mut self.law_workspace,
             tasks,
@@ -1015,13 +1010,11 @@ impl<const N: usize> StackController<N> {
             q,
             time,
             change,
-        ) {
-            Ok(output) => output.clone(),
-            Err(error) => {
-                self.lock_joints(&locks_before);
-                return Err(error.into());
-            }
-        };
+        )?
+        .clone();
+        // The predictions see the joints the law locked (D26).
+        self.trial_workspace
+            .lock_joints(self.law_workspace.locked_joints());
         self.change_pending = false;
         if change == StackChange::Changed {
             self.note_law_jump(iteration, &output, &velocity_sent_before);
@@ -1042,7 +1035,6 @@ impl<const N: usize> StackController<N> {
             Ok(event) => event,
             Err(error) => {
                 self.law_workspace.restore(memory);
-                self.lock_joints(&locks_before);
                 self.change_pending = change == StackChange::Changed;
                 return Err(error);
             }
@@ -1075,50 +1067,6 @@ impl<const N: usize> StackController<N> {
             result.event = Some(kind);
         }
         Ok(result)
-    }
-
-    /// D26: the joints to hold still at this iteration, from none: while the law `u` of the current stack, solved
-    /// with the joints locked so far, drives a joint within the lock band towards its limit, that joint is locked too
-    /// (at most `N` rounds; the set only grows, and a joint is released as soon as the law no longer presses it). The
-    /// set goes to the law and to the predictions; `true` when it differs from the last iteration's.
-    fn update_locks(
-        &mut self,
-        law: &ControlLaw,
-        tasks: &[TaskValue<N>],
-        cost: Option<&dyn Cost<N>>,
-        q: &JointVector<N>,
-    ) -> Result<bool, ControllerError> {
-        let mut locked = [false; N];
-        let band = self.parameters.lock_band;
-        // A copy (two joint vectors, no allocation), only near a limit: the solves below borrow the controller.
-        let near_limit = self
-            .limits
-            .as_ref()
-            .filter(|limits| band > 0.0 && limits.any_within_band(q, band));
-        if let Some(limits) = near_limit.cloned() {
-            let mut gradient = JointVector::zeros();
-            if let Some(cost) = cost {
-                cost.value_and_gradient(q, &mut gradient)?;
-            }
-            self.trial_order.clear();
-            self.trial_order.extend_from_slice(&self.stacked);
-            for _ in 0..=N {
-                self.trial_workspace.lock_joints(&locked);
-                let velocity = self.trial_law(law, tasks, cost.map(|_| &gradient))?;
-                if !limits.lock_pressed_joints(q, &velocity, band, &mut locked) {
-                    break;
-                }
-            }
-        }
-        let changed = locked != *self.law_workspace.locked_joints();
-        self.lock_joints(&locked);
-        Ok(changed)
-    }
-
-    /// Locks `locked` in the law and in the predictions (D26).
-    fn lock_joints(&mut self, locked: &[bool; N]) {
-        self.law_workspace.lock_joints(locked);
-        self.trial_workspace.lock_joints(locked);
     }
 
     /// Fills `law_jump` of the event made at `iteration`: `‖u(τ) − q̇(τ⁻)‖`.

@@ -35,7 +35,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::avoidance::{Cost, CostError};
+use crate::avoidance::{Cost, CostError, JointLimits};
 use crate::bounds::{GAIN_PER_S, TRANSITION_GAIN_PER_S};
 use crate::continuity::Transition;
 use crate::math::{first_non_finite, JointVector};
@@ -95,6 +95,12 @@ pub enum LawError {
     /// The law produced a non-finite velocity (for example, a cost gradient overflowed).
     #[error("the control law produced a non-finite velocity")]
     NonFiniteVelocity,
+    /// The lock band of D26 is outside `(0, 0.5)` (a fraction of each joint's range).
+    #[error("lock band {band} must be within (0, 0.5) of a joint's range")]
+    InvalidLockBand {
+        /// The band given.
+        band: f64,
+    },
     /// The sigmoid bounds of [`AvoidanceProjection::NormPreserving`] must be finite with `0 ≤ lower < upper`.
     #[error("norm-preserving projection bounds {lower} .. {upper} must be finite with 0 ≤ lower < upper")]
     InvalidProjectionBounds {
@@ -379,8 +385,26 @@ impl<const N: usize> ControlOutput<N> {
 #[derive(Debug, Clone)]
 pub struct ControlWorkspace<const N: usize> {
     stack: StackWorkspace<N>,
+    /// The limits and band of the lock of D26, if the law slides along them.
+    lock: Option<(JointLimits<N>, f64)>,
     transition: Transition<N>,
     output: ControlOutput<N>,
+}
+
+/// The memory of the law ([`ControlWorkspace::memory`]): the transition state, the last velocity returned and the
+/// joints locked at the last step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LawMemory<const N: usize> {
+    transition: Transition<N>,
+    velocity: JointVector<N>,
+    locked: [bool; N],
+}
+
+impl<const N: usize> LawMemory<N> {
+    /// The last velocity returned (or reported sent): `q̇(τ⁻)` of a change made at the next step.
+    pub fn velocity(&self) -> &JointVector<N> {
+        &self.velocity
+    }
 }
 
 impl<const N: usize> ControlWorkspace<N> {
@@ -388,6 +412,7 @@ impl<const N: usize> ControlWorkspace<N> {
     pub fn new(tasks: &[TaskValue<N>]) -> Self {
         Self {
             stack: StackWorkspace::new(tasks),
+            lock: None,
             transition: Transition::default(),
             output: ControlOutput {
                 velocity: JointVector::zeros(),
@@ -404,14 +429,23 @@ impl<const N: usize> ControlWorkspace<N> {
         self.stack.solution()
     }
 
-    /// Holds the joints marked `true` still in the next steps' stack and avoidance term ([D26](crate::theory#d26),
-    /// [`StackWorkspace::lock_joints`]). A change of the locked set is a change of the law: the caller passes
-    /// [`StackChange::Changed`] at the step that follows, so that the velocity stays continuous (D1).
-    pub fn lock_joints(&mut self, locked: &[bool; N]) {
-        self.stack.lock_joints(locked);
+    /// The law slides along the hard limits `limits` ([D26](crate::theory#d26)): at each step, a joint within
+    /// `band · Δq_i` of a limit (`band` a fraction of the range, in `(0, 0.5)`) that the law drives towards it is held
+    /// still, and the stack and its avoidance term are solved again on the other joints
+    /// ([`StackWorkspace::lock_joints`]), until no joint in the band is driven in. A change of the locked joints
+    /// restarts the transition from the last velocity, as a stack change does, so the velocity stays continuous.
+    ///
+    /// # Errors
+    /// [`LawError::InvalidLockBand`] for a band outside `(0, 0.5)`.
+    pub fn lock_at_limits(&mut self, limits: JointLimits<N>, band: f64) -> Result<(), LawError> {
+        if !(band > 0.0 && band < 0.5) {
+            return Err(LawError::InvalidLockBand { band });
+        }
+        self.lock = Some((limits, band));
+        Ok(())
     }
 
-    /// The joints the next steps hold still.
+    /// The joints the last step held still (D26).
     pub fn locked_joints(&self) -> &[bool; N] {
         self.stack.locked_joints()
     }
@@ -438,15 +472,20 @@ impl<const N: usize> ControlWorkspace<N> {
         self.output.velocity.copy_from(velocity);
     }
 
-    /// The memory of the law: the transition state and the last velocity returned.
-    pub fn memory(&self) -> (Transition<N>, JointVector<N>) {
-        (self.transition, self.output.velocity)
+    /// The memory of the law: the transition state, the last velocity returned and the joints locked.
+    pub fn memory(&self) -> LawMemory<N> {
+        LawMemory {
+            transition: self.transition,
+            velocity: self.output.velocity,
+            locked: *self.stack.locked_joints(),
+        }
     }
 
     /// Restores a memory taken by [`Self::memory`] (a step whose velocity was not sent leaves no trace).
-    pub fn restore(&mut self, memory: (Transition<N>, JointVector<N>)) {
-        self.transition = memory.0;
-        self.output.velocity = memory.1;
+    pub fn restore(&mut self, memory: LawMemory<N>) {
+        self.transition = memory.transition;
+        self.output.velocity = memory.velocity;
+        self.stack.lock_joints(&memory.locked);
     }
 }
 
@@ -480,17 +519,18 @@ pub fn control_step<'w, const N: usize>(
     if time <= previous {
         return Err(LawError::TimeNotIncreasing { time, previous });
     }
-    let solution = solve_stack(&law.stack, &mut workspace.stack, tasks, order)?;
-    let mut gradient = JointVector::zeros();
-    let cost_value = match cost {
-        Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
-        None => 0.0,
+    let locked_before = *workspace.stack.locked_joints();
+    let solved = solve_law(law, workspace, tasks, order, cost, q);
+    let Ok((law_velocity, gradient, cost_value)) = solved else {
+        workspace.stack.lock_joints(&locked_before);
+        return solved.map(|_| &workspace.output);
     };
-    // u = q̇_n − κ P ∇h (∇h = 0 without a cost; P = P^A_n by default, D16)
-    let mut law_velocity = *solution.velocity();
-    if cost.is_some() {
-        law_velocity += law.avoidance_term(solution, tasks, order, &gradient)?;
-    }
+    // A change of the locked joints is a change of the law (D26): it starts a transition.
+    let change = if *workspace.stack.locked_joints() != locked_before {
+        StackChange::Changed
+    } else {
+        change
+    };
     let mut transition = workspace.transition;
     if change == StackChange::Changed {
         transition.switch(time, &workspace.output.velocity, &law_velocity);
@@ -499,8 +539,9 @@ pub fn control_step<'w, const N: usize>(
     let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
     // Finite norms (hence finite entries): entries whose squares overflow are no velocity to send, and the
     // controller reads ‖q̇_n‖.
-    let stack_norm = solution.velocity().norm();
+    let stack_norm = workspace.stack.solution().velocity().norm();
     if !(velocity.norm().is_finite() && stack_norm.is_finite() && cost_value.is_finite()) {
+        workspace.stack.lock_joints(&locked_before);
         return Err(LawError::NonFiniteVelocity);
     }
     transition.stepped_at(time);
@@ -512,6 +553,42 @@ pub fn control_step<'w, const N: usize>(
     output.cost = cost_value;
     output.decay = decay;
     Ok(output)
+}
+
+/// The law `u = q̇_n − κ P ∇h` ([\[M18\]](crate::theory#m18); `∇h = 0` without a cost; `P = P^A_n` by default, D16),
+/// with its gradient and cost: solved with no joint locked, then, with the lock of D26, again with every joint the law
+/// presses into a limit locked, until none is (at most `N` rounds). The locked set is left in the workspace.
+fn solve_law<const N: usize>(
+    law: &ControlLaw,
+    workspace: &mut ControlWorkspace<N>,
+    tasks: &[TaskValue<N>],
+    order: &[usize],
+    cost: Option<&dyn Cost<N>>,
+    q: &JointVector<N>,
+) -> Result<(JointVector<N>, JointVector<N>, f64), LawError> {
+    let mut gradient = JointVector::zeros();
+    let cost_value = match cost {
+        Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
+        None => 0.0,
+    };
+    let ControlWorkspace { stack, lock, .. } = workspace;
+    let mut locked = [false; N];
+    // Each round that goes on locks one more joint: at most N + 1 solves.
+    loop {
+        stack.lock_joints(&locked);
+        let solution = solve_stack(&law.stack, stack, tasks, order)?;
+        let mut law_velocity = *solution.velocity();
+        if cost.is_some() {
+            law_velocity += law.avoidance_term(solution, tasks, order, &gradient)?;
+        }
+        let pressed = lock.as_ref().is_some_and(|(limits, band)| {
+            limits.any_within_band(q, *band)
+                && limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
+        });
+        if !pressed {
+            return Ok((law_velocity, gradient, cost_value));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -579,6 +656,107 @@ mod tests {
             upper: 3.0,
         };
         assert_eq!(law_of(far, &case).1.norm(), 0.0);
+    }
+
+    /// D26: the full-rank task drives joint 1 (q = 0.95) towards its upper limit 1. Once joint 1 is within the lock band
+    /// the law holds it still, with either projection, and solves the task on the other two joints; the step that
+    /// locks it starts a transition from the last velocity (`q̇(τ⁺) = q̇(τ⁻)`); a joint the law moves away from its
+    /// limit is not locked; bands outside `(0, 0.5)` are refused.
+    #[test]
+    fn a_joint_pressed_into_its_limit_is_locked_and_the_transition_restarts() {
+        #[allow(clippy::too_many_arguments)]
+        fn step(
+            law: &ControlLaw,
+            workspace: &mut ControlWorkspace<3>,
+            tasks: &[TaskValue<3>],
+            cost: Option<&dyn Cost<3>>,
+            q: Vector3<f64>,
+            time: f64,
+            change: StackChange,
+        ) -> ControlOutput<3> {
+            control_step(law, workspace, tasks, &[0], cost, &q, time, change)
+                .unwrap()
+                .clone()
+        }
+        let (tasks, limits, _) = full_rank_case();
+        let at_limit = Vector3::new(0.0, 1.0 - 1e-3, 0.0);
+        for projection in [AvoidanceProjection::Kernel, AvoidanceProjection::VISP] {
+            let law = ControlLaw::new(10.0, 0.5)
+                .unwrap()
+                .with_avoidance_projection(projection)
+                .unwrap();
+            let mut workspace = ControlWorkspace::new(&tasks);
+            workspace.lock_at_limits(limits.clone(), 1e-3).unwrap();
+            let cost: Option<&dyn Cost<3>> = Some(&limits);
+            let inside = Vector3::new(0.0, 0.95, 0.0);
+            // Away from the limit: nothing locked; the law drives joint 1 up.
+            let free = step(
+                &law,
+                &mut workspace,
+                &tasks,
+                cost,
+                inside,
+                0.01,
+                StackChange::Changed,
+            );
+            assert!(free.law()[1] > 0.0, "{:?}", free.law());
+            let settled = step(
+                &law,
+                &mut workspace,
+                &tasks,
+                cost,
+                inside,
+                10.0,
+                StackChange::Unchanged,
+            );
+            assert_eq!(workspace.locked_joints(), &[false; 3]);
+            // Within 1e−3 of its range (2e−3) from the limit: locked.
+            let locked = step(
+                &law,
+                &mut workspace,
+                &tasks,
+                cost,
+                at_limit,
+                10.01,
+                StackChange::Unchanged,
+            );
+            assert_eq!(workspace.locked_joints(), &[false, true, false]);
+            assert_eq!(locked.law()[1], 0.0);
+            assert!((locked.law() - settled.law()).norm() > 0.1);
+            // The transition restarted: the velocity is the last one, not the new law.
+            assert!((locked.velocity() - settled.velocity()).norm() < 1e-12);
+            // The task in least squares on joints 0 and 2: the residual of J q̇_n = −λ e is orthogonal to their columns.
+            let jacobian = tasks[0].jacobian();
+            let residual =
+                jacobian * workspace.stack_solution().velocity() + tasks[0].error() * 0.5;
+            for column in [0, 2] {
+                assert!(jacobian.column(column).dot(&residual).abs() < 1e-12);
+            }
+        }
+        // Driven away from the limit, the joint is not locked.
+        let task = &tasks[0];
+        let reversed =
+            [TaskValue::from_parts("t", -task.error(), task.jacobian().clone(), 0.5).unwrap()];
+        let law = ControlLaw::new(10.0, 0.0).unwrap();
+        let mut workspace = ControlWorkspace::new(&reversed);
+        workspace.lock_at_limits(limits.clone(), 1e-3).unwrap();
+        let away = step(
+            &law,
+            &mut workspace,
+            &reversed,
+            None,
+            at_limit,
+            0.01,
+            StackChange::Changed,
+        );
+        assert!(away.law()[1] < 0.0);
+        assert_eq!(workspace.locked_joints(), &[false; 3]);
+        for band in [0.0, -1e-3, 0.5, f64::NAN] {
+            assert!(matches!(
+                workspace.lock_at_limits(limits.clone(), band),
+                Err(LawError::InvalidLockBand { .. })
+            ));
+        }
     }
 
     #[test]

@@ -567,7 +567,7 @@ impl<const N: usize> VisualServo<N> {
         )?;
         let mut controller = StackController::new(config.controller, &values)?
             .with_protected_tasks(protected)?
-            .with_joint_limits(limits.clone());
+            .with_joint_limits(limits.clone())?;
         if matches!(config.tasks, TaskChoice::Sequence { .. }) {
             controller = controller.with_reserve_task()?;
         }

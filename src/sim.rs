@@ -1270,7 +1270,7 @@ pub fn simulate_with<const N: usize>(
         .transpose()?;
     let mut controller = StackController::new(drive.controller, &values)?
         .with_protected_tasks(drive.protected_tasks)?
-        .with_joint_limits(scene.limits.clone());
+        .with_joint_limits(scene.limits.clone())?;
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }
@@ -1553,7 +1553,8 @@ mod tests {
         let reason_at = |q: JointVector<2>| {
             let mut controller = StackController::new(ControllerParameters::default(), &tasks)
                 .unwrap()
-                .with_joint_limits(limits.clone());
+                .with_joint_limits(limits.clone())
+                .unwrap();
             controller.step(&law, &tasks, None, &q, 0, 0.01).unwrap();
             assert!(controller.is_complete());
             match budget_outcome(&controller, &["reach".to_string()], None) {
