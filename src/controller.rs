@@ -1430,10 +1430,8 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(None, Some(task));
-            let without = prediction.after_change(
-                &self.trial_law(law, tasks, Some(prediction.gradient))?,
-                horizon,
-            );
+            let without =
+                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_without = self.predicted_value(cost, &without)?;
             if !robust {
                 return Ok(Some((task, predicted_without)));
@@ -1536,10 +1534,8 @@ impl<const N: usize> StackController<N> {
                 continue;
             }
             self.set_trial_stack(Some(task), None);
-            let back = prediction.after_change(
-                &self.trial_law(law, tasks, Some(prediction.gradient))?,
-                horizon,
-            );
+            let back =
+                prediction.after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
             let predicted_back = self.predicted_value(cost, &back)?;
             if accept(predicted_back) {
                 return Ok(Some((task, predicted_back)));
@@ -1564,12 +1560,12 @@ impl<const N: usize> StackController<N> {
         }
     }
 
-    /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order` (`u = q̇_n` without a cost's gradient).
+    /// The law `u = q̇_n − κ P^A_n ∇h` of the stack `self.trial_order`.
     fn trial_law(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
-        gradient: Option<&JointVector<N>>,
+        gradient: &JointVector<N>,
     ) -> Result<JointVector<N>, ControllerError> {
         let solution = solve_stack(
             law.stack_parameters(),
@@ -1578,11 +1574,8 @@ impl<const N: usize> StackController<N> {
             &self.trial_order,
         )
         .map_err(LawError::from)?;
-        let mut velocity = *solution.velocity();
-        if let Some(gradient) = gradient {
-            velocity += law.avoidance_term(solution, tasks, &self.trial_order, gradient)?;
-        }
-        Ok(velocity)
+        let avoidance = law.avoidance_term(solution, tasks, &self.trial_order, gradient)?;
+        Ok(solution.velocity() + avoidance)
     }
 
     /// D5: the stack velocity is below `epsilon_add` and the last transition has died out.
@@ -1658,10 +1651,8 @@ impl<const N: usize> StackController<N> {
                         }
                         _ => self.parameters.prediction_horizon,
                     };
-                    let back = prediction.after_change(
-                        &self.trial_law(law, tasks, Some(prediction.gradient))?,
-                        horizon,
-                    );
+                    let back = prediction
+                        .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
                     self.predicted_value(cost, &back)?
                 }
                 _ => 0.0,
@@ -1784,10 +1775,8 @@ impl<const N: usize> StackController<N> {
                 }
                 self.set_trial_stack(Some(back), Some(out));
                 let horizon = self.parameters.reinsertion_look_ahead / back_gain;
-                let swapped = prediction.after_change(
-                    &self.trial_law(law, tasks, Some(prediction.gradient))?,
-                    horizon,
-                );
+                let swapped = prediction
+                    .after_change(&self.trial_law(law, tasks, prediction.gradient)?, horizon);
                 let predicted_cost = self.predicted_value(cost, &swapped)?;
                 if predicted_cost <= threshold {
                     return Ok(Some((back, out, predicted_cost)));

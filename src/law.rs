@@ -495,8 +495,8 @@ impl<const N: usize> ControlWorkspace<N> {
 /// # Errors
 /// Non-finite `q` or time, a time before the last change `τ` (a fresh workspace has `τ = 0`) or not strictly after the
 /// last step's ([`LawError::TimeNotIncreasing`]; a step that failed does not count), stack or cost failures,
-/// a non-finite result. On error the workspace keeps its transition and previous output (the next change still starts
-/// from the last velocity actually returned).
+/// a non-finite result. On error the workspace keeps its transition, previous output and locked joints (the next
+/// change still starts from the last velocity actually returned).
 #[allow(clippy::too_many_arguments)]
 pub fn control_step<'w, const N: usize>(
     law: &ControlLaw,
@@ -520,11 +520,14 @@ pub fn control_step<'w, const N: usize>(
         return Err(LawError::TimeNotIncreasing { time, previous });
     }
     let locked_before = *workspace.stack.locked_joints();
-    let solved = solve_law(law, workspace, tasks, order, cost, q);
-    let Ok((law_velocity, gradient, cost_value)) = solved else {
-        workspace.stack.lock_joints(&locked_before);
-        return solved.map(|_| &workspace.output);
-    };
+    let (law_velocity, gradient, cost_value) =
+        match solve_law(law, workspace, tasks, order, cost, q) {
+            Ok(solved) => solved,
+            Err(error) => {
+                workspace.stack.lock_joints(&locked_before);
+                return Err(error);
+            }
+        };
     // A change of the locked joints is a change of the law (D26): it starts a transition.
     let change = if *workspace.stack.locked_joints() != locked_before {
         StackChange::Changed
