@@ -585,8 +585,7 @@ fn solve_law<const N: usize>(
             law_velocity += law.avoidance_term(solution, tasks, order, &gradient)?;
         }
         let pressed = lock.as_ref().is_some_and(|(limits, band)| {
-            limits.any_within_band(q, *band)
-                && limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
+            limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
         });
         if !pressed {
             return Ok((law_velocity, gradient, cost_value));

@@ -161,16 +161,6 @@ impl<const N: usize> JointLimits<N> {
         marked
     }
 
-    /// `true` when some limited joint is within `band · Δq_i` of a limit, or past it: the only case where
-    /// [`Self::lock_pressed_joints`] can mark one.
-    pub fn any_within_band(&self, q: &JointVector<N>, band: f64) -> bool {
-        (0..N).any(|joint| {
-            let width = band * self.range(joint);
-            !self.is_unlimited(joint)
-                && (q[joint] - self.lower[joint] < width || self.upper[joint] - q[joint] < width)
-        })
-    }
-
     /// The scale of the velocity sent to the joints: `q̇` scaled uniformly into the robot's velocity limits
     /// (`|q̇_i| ≤ q̇_i^max`, [`velocity_limit_scale`]), then braked before the hard limits ([`Self::braking_scale`] at
     /// the rate `braking_rate`, s⁻¹; `+∞`: no braking). `s ∈ [0, 1]`, sent as `s q̇`.
@@ -433,7 +423,6 @@ mod tests {
         // Band 1e−3 of the range: 2e−3 rad on joint 0, 1e−4 m on joint 1, 4e−3 rad on joint 3.
         let band = 1e-3;
         let q = JointVector::<4>::new(-1.0 + 1.9e-3, 0.1 - 0.9e-4, 1e9, 2.0 - 4.1e-3);
-        assert!(limits.any_within_band(&q, band));
         let mut locked = [false; 4];
         let inwards = JointVector::<4>::new(-1.0, 1.0, 1.0, 1.0);
         assert!(limits.lock_pressed_joints(&q, &inwards, band, &mut locked));
@@ -449,9 +438,12 @@ mod tests {
         let past = JointVector::<4>::new(-1.1, 0.05, 0.0, 0.0);
         assert!(limits.lock_pressed_joints(&past, &inwards, band, &mut locked));
         assert_eq!(locked, [true, false, false, false]);
-        // Far from every limit, or with a zero band, nothing is within the band.
-        assert!(!limits.any_within_band(&JointVector::<4>::new(0.0, 0.05, 0.0, 0.0), band));
-        assert!(!limits.any_within_band(&q, 0.0));
+        // Far from every limit, or with a zero band, nothing is locked.
+        let mut locked = [false; 4];
+        let middle = JointVector::<4>::new(0.0, 0.05, 0.0, 0.0);
+        assert!(!limits.lock_pressed_joints(&middle, &inwards, band, &mut locked));
+        assert!(!limits.lock_pressed_joints(&q, &inwards, 0.0, &mut locked));
+        assert_eq!(locked, [false; 4]);
     }
 
     /// An unlimited joint (a continuous joint) adds nothing to `h` or `∇h` however far it turns, is never violated,
