@@ -630,16 +630,27 @@ impl Scenario {
             .map_err(|e| invalid("controller", e.to_string()))?;
         self.simulation.validate()?;
         let mut workspace = crate::robot::KinematicsWorkspace::new();
-        let visible = match scene.observe(&mut workspace, &start) {
-            Ok(view) => scene
-                .intrinsics()
-                .all_in_field_of_view(&view.points, self.simulation.image_margin),
-            Err(_) => false,
+        let view = match scene.observe(&mut workspace, &start) {
+            Ok(view)
+                if scene
+                    .intrinsics()
+                    .all_in_field_of_view(&view.points, self.simulation.image_margin) =>
+            {
+                view
+            }
+            _ => {
+                return Err(invalid(
+                    "start.joints",
+                    "the target is not entirely in the image at the start",
+                ))
+            }
         };
-        if !visible {
+        // A target the camera sees too obliquely at the start is not tracked there (D27).
+        let incidence = scene.target_incidence_deg(&view.c_from_o);
+        if incidence > self.simulation.max_incidence_deg {
             return Err(invalid(
                 "start.joints",
-                "the target is not entirely in the image at the start",
+                crate::sim::incidence_reason(incidence, self.simulation.max_incidence_deg),
             ));
         }
         Ok(Experiment {

@@ -52,7 +52,7 @@ use crate::target::{RectangleTarget, TargetError, TargetPlane};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{VisualContext, VisualTask};
 use nalgebra::Isometry3;
-use nalgebra::{Point2, Vector6};
+use nalgebra::{Point2, Point3, Vector6};
 
 /// Errors of the simulation (distinct from the run's outcome: a joint limit or a lost feature is an outcome, not an
 /// error).
@@ -281,6 +281,27 @@ impl<const N: usize> Scene<N> {
         )
     }
 
+    /// The angle (degrees, in `[0, 180]`) at which the camera that sees the target at `c_from_o` looks at it
+    /// ([D27](crate::theory#d27)): between the normal of the target's plane on its front side — the side the camera
+    /// sees it from at its goal pose — and the line from the target's centre (the origin of its frame) to the
+    /// camera's optical centre. 0 head-on, 90 edge-on, above 90 from behind.
+    pub fn target_incidence_deg(&self, c_from_o: &Isometry3<f64>) -> f64 {
+        // The optical centres in the target frame o; the target's plane is z = 0 of o.
+        let camera = c_from_o.inverse_transform_point(&Point3::origin()).coords;
+        let goal = self
+            .desired_camera_from_object
+            .inverse_transform_point(&Point3::origin());
+        let front = if goal.z < 0.0 { -1.0 } else { 1.0 };
+        let distance = camera.norm();
+        if distance == 0.0 {
+            return 90.0; // the optical centre on the target's centre: in its plane
+        }
+        (front * camera.z / distance)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
+    }
+
     /// The view of the target from the camera pose `c_from_o` (no robot involved: for desired images).
     ///
     /// # Errors
@@ -363,6 +384,12 @@ pub struct SimulationParameters {
     pub goal_tolerance_deg: f64,
     /// A point closer than this to the image border (px) is lost.
     pub image_margin: f64,
+    /// The largest angle (degrees) between the target's normal and its line of sight at which the target is still
+    /// tracked ([`Scene::target_incidence_deg`]; [D27](crate::theory#d27)). Seen more obliquely, or from behind, the
+    /// run ends as [`Outcome::ImageDegenerate`], and a start so seen is not a valid situation. Default 80°: the target
+    /// then spans `cos 80° ≈ 0.17` of its head-on width across its normal, where marker and blob detectors lose it;
+    /// within `(0, 180]`, 180 switching the check off.
+    pub max_incidence_deg: f64,
     /// The robot's velocity limit of a prismatic joint (m/s, > 0; default `+∞`: none). The controller's velocity is
     /// scaled uniformly into the limits (its direction kept) and the scaled velocity fed back to the controller, as
     /// [`crate::servo::VisualServo`] does.
@@ -385,6 +412,7 @@ impl Default for SimulationParameters {
             goal_tolerance_m: 0.01,
             goal_tolerance_deg: 1.0,
             image_margin: 0.0,
+            max_incidence_deg: 80.0,
             max_prismatic_velocity_m_s: f64::INFINITY,
             max_revolute_velocity_rad_s: f64::INFINITY,
             visibility_margin_px: 20.0,
@@ -425,6 +453,10 @@ impl SimulationParameters {
         if !(self.image_margin.is_finite() && self.image_margin >= 0.0) {
             return invalid("image_margin", self.image_margin, "finite and ≥ 0");
         }
+        let incidence = self.max_incidence_deg;
+        if !(incidence > 0.0 && incidence <= 180.0) {
+            return invalid("max_incidence_deg", incidence, "within (0, 180] degrees");
+        }
         for (name, value) in [
             ("goal_tolerance_m", self.goal_tolerance_m),
             ("goal_tolerance_deg", self.goal_tolerance_deg),
@@ -447,6 +479,13 @@ impl SimulationParameters {
         }
         Ok(())
     }
+}
+
+/// Why a target seen at `incidence` degrees from its normal is not tracked (D27).
+pub(crate) fn incidence_reason(incidence: f64, max_incidence_deg: f64) -> String {
+    format!(
+        "the target is seen {incidence:.1}° from its normal, beyond max_incidence_deg = {max_incidence_deg}°"
+    )
 }
 
 /// How a run ended.
@@ -490,8 +529,9 @@ pub enum Outcome {
         /// Why it could not come in.
         reason: String,
     },
-    /// The target is seen edge-on: its plane passes through the optical centre, or a feature is undefined on the image
-    /// (collinear points, vanishing area).
+    /// The target is seen edge-on: its plane passes through the optical centre, it is seen more obliquely than
+    /// [`SimulationParameters::max_incidence_deg`] (D27), or a feature is undefined on the image (collinear points,
+    /// vanishing area).
     ImageDegenerate {
         /// What is undefined.
         reason: String,
@@ -1354,6 +1394,13 @@ pub fn simulate_with<const N: usize>(
                 .in_field_of_view(p, parameters.image_margin)
         }) {
             outcome = Some(Outcome::FeatureLost { point });
+            break;
+        }
+        let incidence = scene.target_incidence_deg(&view.c_from_o);
+        if incidence > parameters.max_incidence_deg {
+            outcome = Some(Outcome::ImageDegenerate {
+                reason: incidence_reason(incidence, parameters.max_incidence_deg),
+            });
             break;
         }
         let observation = view.observation()?;

@@ -10,7 +10,8 @@
 //! not the name: a study of one family draws what the first family of any study draws.
 //!
 //! A draw whose situation is not a valid experiment (a start outside the limits, a target not entirely in the image at
-//! the start, a goal outside the limits) is drawn again from the same stream, up to [`MAX_ATTEMPTS`] times; the number
+//! the start or seen there beyond `simulation.max_incidence_deg` of its normal ([D27](crate::theory#d27)), a goal
+//! outside the limits) is drawn again from the same stream, up to [`MAX_ATTEMPTS`] times; the number
 //! of such rejections is reported.
 //!
 //! ```no_run
@@ -97,7 +98,8 @@ pub enum Perturbation {
         max_angle_deg: f64,
     },
     /// The start drawn uniformly inside the joint limits; an unlimited (continuous) joint is drawn uniformly in
-    /// `[−π, π]`, one full turn.
+    /// `[−π, π]`, one full turn. Only starts from which the camera sees the whole target, within the incidence bound
+    /// of D27, are kept.
     Uniform,
 }
 

@@ -268,3 +268,84 @@ fn eye_in_hand_mount() {
         })
     );
 }
+
+/// A scene on the Afma6 whose camera sees the target at `desired` (ViSP `cdMo`) at the reference configuration.
+fn scene_seen_from(desired: &Isometry3<f64>) -> servostack::sim::Scene<6> {
+    let robot = servostack::robot::builtin::afma6().unwrap();
+    servostack::sim::Scene::with_target_seen_from(
+        robot.chain,
+        robot.camera,
+        camera(),
+        RectangleTarget::new(0.2, 0.1).unwrap(),
+        &crate::obstacle_fixture::reference_q(),
+        desired,
+        0.1,
+    )
+    .unwrap()
+}
+
+proptest! {
+    /// D27: the incidence is the angle between the target's front normal and the line from its centre to the optical
+    /// centre, whatever the camera's orientation. A camera placed at polar angle θ from the front normal (azimuth φ,
+    /// distance d), turned any way, sees the target at θ; with the goal on the other side of the plane, the front is
+    /// that side, and the same camera sees it at 180° − θ.
+    #[test]
+    fn incidence_is_the_polar_angle_from_the_front_normal(
+        theta_deg in 0.0..180.0f64,
+        phi in -3.1..3.1f64,
+        distance in 0.05..3.0f64,
+        roll in -3.1..3.1f64,
+        pitch in -1.5..1.5f64,
+        yaw in -3.1..3.1f64,
+    ) {
+        let theta = theta_deg.to_radians();
+        // The goal camera looks along +z of the target frame from z = −0.5: the front normal is −z.
+        let front = scene_seen_from(&Isometry3::translation(0.0, 0.0, 0.5));
+        // Turned half a turn about x, it looks along −z from z = +0.5: the front normal is +z.
+        let back = scene_seen_from(&Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 0.5),
+            UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0),
+        ));
+        let position = Vector3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            -theta.cos(),
+        ) * distance;
+        let o_from_c = Isometry3::from_parts(
+            Translation3::from(position),
+            UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+        );
+        let c_from_o = o_from_c.inverse();
+        prop_assert!((front.target_incidence_deg(&c_from_o) - theta_deg).abs() < 1e-6);
+        prop_assert!((back.target_incidence_deg(&c_from_o) - (180.0 - theta_deg)).abs() < 1e-6);
+    }
+}
+
+/// D27: at the goal pose of any scene the target is seen at its goal incidence (0 head-on, 20° for a camera turned
+/// 20° about the target's centre), and a camera on the target's centre is in its plane (90°).
+#[test]
+fn goal_incidence_and_the_degenerate_camera() {
+    let head_on = Isometry3::translation(0.0, 0.0, 0.5);
+    assert!(
+        scene_seen_from(&head_on)
+            .target_incidence_deg(&head_on)
+            .abs()
+            < 1e-9
+    );
+    // The camera 0.5 m from the centre, 20° off the normal about the target's y axis, looking at it.
+    let o_from_c = Isometry3::from_parts(
+        Translation3::new(
+            0.5 * 20f64.to_radians().sin(),
+            0.0,
+            -0.5 * 20f64.to_radians().cos(),
+        ),
+        UnitQuaternion::from_euler_angles(0.0, -20f64.to_radians(), 0.0),
+    );
+    let turned = o_from_c.inverse();
+    // The target's centre is on the optical axis of the turned camera.
+    let centre = turned.transform_point(&Point3::origin());
+    assert!(centre.x.abs() < 1e-12 && centre.y.abs() < 1e-12 && centre.z > 0.0);
+    let scene = scene_seen_from(&turned);
+    assert!((scene.target_incidence_deg(&turned) - 20.0).abs() < 1e-9);
+    assert_eq!(scene.target_incidence_deg(&Isometry3::identity()), 90.0);
+}

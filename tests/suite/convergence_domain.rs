@@ -227,7 +227,7 @@ fn holding_keeps_failed_uniform_runs_inside_the_limits() {
     held.controller.lock_band = 0.0;
     let mut crossing = held.clone();
     crossing.controller.hold_before_limit = false;
-    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 16, 3);
+    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);
     let count = |outcomes: &[&str], which: &str| outcomes.iter().filter(|&&o| o == which).count();
     let (held, crossing) = (outcomes(&held), outcomes(&crossing));
     let (crossed_with, crossed_without) =

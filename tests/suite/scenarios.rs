@@ -4,7 +4,7 @@
 
 use servostack::controller::EventKind;
 use servostack::scenario::{RunKind, Scenario, ScenarioError};
-use servostack::sim::{Outcome, Run};
+use servostack::sim::{Outcome, Run, SimError};
 use std::path::Path;
 
 const UR5E: &str = include_str!("../../assets/scenarios/ur5e.toml");
@@ -410,4 +410,87 @@ fn joint_kinds_name_each_joint_of_the_scenario_robot() {
         kinds("rail7_limits.toml"),
         [Prismatic, Revolute, Revolute, Prismatic, Continuous, Revolute, Revolute]
     );
+}
+
+/// The incidence (D27) at which the camera of `experiment` sees the target at `q`.
+fn incidence_at<const N: usize>(
+    experiment: &servostack::scenario::Experiment<N>,
+    q: &servostack::math::JointVector<N>,
+) -> f64 {
+    let view = experiment
+        .scene
+        .observe(&mut servostack::robot::KinematicsWorkspace::new(), q)
+        .unwrap();
+    experiment.scene.target_incidence_deg(&view.c_from_o)
+}
+
+/// D27: a target seen more obliquely than `max_incidence_deg` is not tracked. A start beyond it is not a valid
+/// situation (the error names the start and the angle), and a run whose camera turns the target beyond it ends as
+/// `image_degenerate` at the first iteration past the threshold, with the angle in its reason; the check off (180°),
+/// the same run goes on. Out-of-range thresholds are refused.
+#[test]
+fn a_target_seen_too_obliquely_is_not_tracked() {
+    let mut scenario = Scenario::from_file(&assets().join("paper_afma6.toml")).unwrap();
+    scenario.simulation.max_incidence_deg = 180.0;
+    let experiment = scenario.experiment::<6>().unwrap();
+    let start = incidence_at(&experiment, &experiment.start);
+    // The classical law's run, unchecked: the largest incidence it reaches after its start.
+    let free = scenario
+        .run_experiment(&experiment, RunKind::Classical)
+        .unwrap();
+    let incidences: Vec<f64> = free
+        .records
+        .iter()
+        .map(|r| incidence_at(&experiment, &r.q))
+        .collect();
+    let (peak_at, peak) = incidences
+        .iter()
+        .copied()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    assert!(
+        peak > start + 0.5,
+        "the run turns the target away: {start}° → {peak}°"
+    );
+
+    // A threshold below the start's incidence: the start is refused, naming the angle.
+    scenario.simulation.max_incidence_deg = start - 0.1;
+    match scenario.experiment::<6>() {
+        Err(ScenarioError::Invalid { field, reason }) => {
+            assert_eq!(field, "start.joints");
+            assert!(reason.contains(&format!("{start:.1}°")), "{reason}");
+        }
+        other => panic!("a start seen at {start}° accepted: {other:?}"),
+    }
+
+    // A threshold between the start's and the peak's: the run ends where the incidence first passes it.
+    let threshold = 0.5 * (start + peak);
+    scenario.simulation.max_incidence_deg = threshold;
+    let checked = scenario.run::<6>(RunKind::Classical).unwrap();
+    let first_past = incidences.iter().position(|&i| i > threshold).unwrap();
+    assert!(first_past <= peak_at);
+    match &checked.outcome {
+        Outcome::ImageDegenerate { reason } => {
+            assert!(reason.contains("from its normal"), "{reason}");
+        }
+        other => panic!("expected image_degenerate, got {other:?}"),
+    }
+    // Iterations 0 … first_past − 1 were recorded; the run ended on observing iteration first_past.
+    assert_eq!(checked.iterations(), first_past);
+    assert_eq!(checked.records.len(), first_past);
+
+    for bad in [0.0, -5.0, 180.5, f64::NAN, f64::INFINITY] {
+        scenario.simulation.max_incidence_deg = bad;
+        assert!(
+            matches!(
+                scenario.experiment::<6>(),
+                Err(ScenarioError::Simulation(SimError::InvalidParameter {
+                    name: "max_incidence_deg",
+                    ..
+                }))
+            ),
+            "max_incidence_deg = {bad} accepted"
+        );
+    }
 }
