@@ -620,15 +620,19 @@ impl Scenario {
             let obstacles = self.obstacle_cost(scene.chain().clone())?;
             scene = scene.with_obstacles(obstacles);
         }
-        if let Some(visibility) = self.visibility {
-            scene = scene
-                .with_visibility_margin(visibility.margin_px)
-                .map_err(|e| invalid("visibility.margin_px", e.to_string()))?;
-        }
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
         self.simulation.validate()?;
+        if let Some(visibility) = self.visibility {
+            let cost = scene
+                .visibility_cost(
+                    visibility.margin_px,
+                    self.simulation.facing_activation_deg(),
+                )
+                .map_err(|e| invalid("visibility.margin_px", e.to_string()))?;
+            scene = scene.with_visibility(cost);
+        }
         let mut workspace = crate::robot::KinematicsWorkspace::new();
         let view = match scene.observe(&mut workspace, &start) {
             Ok(view)

@@ -52,7 +52,7 @@ use crate::target::{RectangleTarget, TargetError, TargetPlane};
 use crate::task::{Task, TaskError, TaskValue};
 use crate::visual_task::{VisualContext, VisualTask};
 use nalgebra::Isometry3;
-use nalgebra::{Point2, Point3, Vector6};
+use nalgebra::{Point2, Point3, Vector3, Vector6};
 
 /// Errors of the simulation (distinct from the run's outcome: a joint limit or a lost feature is an outcome, not an
 /// error).
@@ -211,16 +211,52 @@ impl<const N: usize> Scene<N> {
     ///
     /// # Errors
     /// [`SimError::Cost`] for an invalid margin.
-    pub fn with_visibility_margin(mut self, margin_px: f64) -> Result<Self, SimError> {
+    pub fn with_visibility_margin(self, margin_px: f64) -> Result<Self, SimError> {
+        let cost = self.visibility_cost(margin_px, None)?;
+        Ok(self.with_visibility(cost))
+    }
+
+    /// The scene with `cost` as its visibility cost (built by [`Self::visibility_cost`]).
+    pub fn with_visibility(mut self, cost: VisibilityCost<N>) -> Self {
+        self.visibility = Some(cost);
+        self
+    }
+
+    /// The visibility cost of this scene's target ([`VisibilityCost`]), active within `margin_px` of the image border
+    /// and, given `facing_activation_deg`, beyond that angle between the target's front normal and its line of sight
+    /// ([`VisibilityCost::with_facing`], [D27](crate::theory#d27); the front is the side the goal camera sees).
+    ///
+    /// # Errors
+    /// An invalid margin or activation angle ([`CostError`]).
+    pub fn visibility_cost(
+        &self,
+        margin_px: f64,
+        facing_activation_deg: Option<f64>,
+    ) -> Result<VisibilityCost<N>, SimError> {
         let points = self.target.points().map(|p| self.base_from_object * p);
-        self.visibility = Some(VisibilityCost::new(
+        let cost = VisibilityCost::new(
             self.chain.clone(),
             self.camera,
             &self.intrinsics,
             &points,
             margin_px,
-        )?);
-        Ok(self)
+        )?;
+        Ok(match facing_activation_deg {
+            None => cost,
+            Some(activation) => {
+                let normal = self.base_from_object.rotation * self.front_normal_in_target();
+                let centre = Point3::from(self.base_from_object.translation.vector);
+                cost.with_facing(centre, normal, activation)?
+            }
+        })
+    }
+
+    /// The target's front normal in its own frame: `±z`, towards the side its goal camera sees it from.
+    fn front_normal_in_target(&self) -> Vector3<f64> {
+        let goal = self
+            .desired_camera_from_object
+            .inverse_transform_point(&Point3::origin());
+        Vector3::new(0.0, 0.0, if goal.z < 0.0 { -1.0 } else { 1.0 })
     }
 
     /// The obstacle cost, if the scene has obstacles.
@@ -286,17 +322,13 @@ impl<const N: usize> Scene<N> {
     /// sees it from at its goal pose — and the line from the target's centre (the origin of its frame) to the
     /// camera's optical centre. 0 head-on, 90 edge-on, above 90 from behind.
     pub fn target_incidence_deg(&self, c_from_o: &Isometry3<f64>) -> f64 {
-        // The optical centres in the target frame o; the target's plane is z = 0 of o.
+        // The optical centre in the target frame o; the target's plane is z = 0 of o.
         let camera = c_from_o.inverse_transform_point(&Point3::origin()).coords;
-        let goal = self
-            .desired_camera_from_object
-            .inverse_transform_point(&Point3::origin());
-        let front = if goal.z < 0.0 { -1.0 } else { 1.0 };
         let distance = camera.norm();
         if distance == 0.0 {
             return 90.0; // the optical centre on the target's centre: in its plane
         }
-        (front * camera.z / distance)
+        (self.front_normal_in_target().dot(&camera) / distance)
             .clamp(-1.0, 1.0)
             .acos()
             .to_degrees()
@@ -390,6 +422,11 @@ pub struct SimulationParameters {
     /// then spans `cos 80° ≈ 0.17` of its head-on width across its normal, where marker and blob detectors lose it;
     /// within `(0, 180]`, 180 switching the check off.
     pub max_incidence_deg: f64,
+    /// The full method keeps the target facing the camera: its visibility cost (the default one, and a scenario's
+    /// `[visibility]`) rises from `max_incidence_deg − facing_margin_deg` on ([D27](crate::theory#d27),
+    /// [`VisibilityCost::with_facing`]), as it rises within `visibility_margin_px` of the image border. Degrees, within
+    /// `[0, max_incidence_deg]`; default 15. With `max_incidence_deg` at 180 and no margin there is no facing term.
+    pub facing_margin_deg: f64,
     /// The robot's velocity limit of a prismatic joint (m/s, > 0; default `+∞`: none). The controller's velocity is
     /// scaled uniformly into the limits (its direction kept) and the scaled velocity fed back to the controller, as
     /// [`crate::servo::VisualServo`] does.
@@ -413,6 +450,7 @@ impl Default for SimulationParameters {
             goal_tolerance_deg: 1.0,
             image_margin: 0.0,
             max_incidence_deg: 80.0,
+            facing_margin_deg: 15.0,
             max_prismatic_velocity_m_s: f64::INFINITY,
             max_revolute_velocity_rad_s: f64::INFINITY,
             visibility_margin_px: 20.0,
@@ -421,6 +459,13 @@ impl Default for SimulationParameters {
 }
 
 impl SimulationParameters {
+    /// The angle (degrees) from which the full method's visibility cost turns against obliquity (D27):
+    /// `max_incidence_deg − facing_margin_deg`, or `None` when that is 180° (the check is off).
+    pub fn facing_activation_deg(&self) -> Option<f64> {
+        let activation = self.max_incidence_deg - self.facing_margin_deg;
+        (activation < 180.0).then_some(activation)
+    }
+
     /// Checks every parameter.
     ///
     /// # Errors
@@ -456,6 +501,14 @@ impl SimulationParameters {
         let incidence = self.max_incidence_deg;
         if !(incidence > 0.0 && incidence <= 180.0) {
             return invalid("max_incidence_deg", incidence, "within (0, 180] degrees");
+        }
+        let facing = self.facing_margin_deg;
+        if !(facing >= 0.0 && facing <= incidence) {
+            return invalid(
+                "facing_margin_deg",
+                facing,
+                "within [0, max_incidence_deg] degrees",
+            );
         }
         for (name, value) in [
             ("goal_tolerance_m", self.goal_tolerance_m),
@@ -1318,13 +1371,9 @@ pub fn simulate_with<const N: usize>(
     // avoidance cost and guards its removals (D6 (d)).
     let default_visibility = match &scene.visibility {
         None if drive.guard_visibility && drive.controller.allow_removal => {
-            let points = scene.target.points().map(|p| scene.base_from_object * p);
-            Some(VisibilityCost::new(
-                scene.chain.clone(),
-                scene.camera,
-                &scene.intrinsics,
-                &points,
+            Some(scene.visibility_cost(
                 parameters.visibility_margin_px,
+                parameters.facing_activation_deg(),
             )?)
         }
         _ => None,

@@ -20,7 +20,7 @@ use servostack::law::{
 };
 use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
-use servostack::sim::{Scene, View};
+use servostack::sim::{Scene, SimulationParameters, View};
 use servostack::target::RectangleTarget;
 use servostack::task::{Task, TaskValue};
 use servostack::visual_task::{classical_task, paper_tasks, VisualContext, VisualTask};
@@ -252,17 +252,18 @@ impl ServoLoop {
     }
 
     /// [`Self::paper`] as the simulation runs the full method: the visibility of the target (the simulation's default
-    /// 20 px margin) joins the avoidance cost and guards removals, evaluated at `q` and at the predicted `q̂`.
+    /// 20 px margin and facing term, D27) joins the avoidance cost and guards removals, evaluated at `q` and at the
+    /// predicted `q̂`.
     pub fn paper_full_method() -> Self {
         let mut servo = Self::paper();
+        let defaults = SimulationParameters::default();
         let guard = servo
             .scene
-            .clone()
-            .with_visibility_margin(20.0)
-            .expect("visibility")
-            .visibility()
-            .expect("visibility cost")
-            .clone();
+            .visibility_cost(
+                defaults.visibility_margin_px,
+                defaults.facing_activation_deg(),
+            )
+            .expect("visibility cost");
         let cost = CompositeCost::new()
             .with(servo.scene.limits().clone())
             .with(guard.clone());

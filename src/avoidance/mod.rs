@@ -168,6 +168,13 @@ pub enum CostError {
     /// A point of the visibility cost is non-finite, or there is none.
     #[error("visibility cost: the target points must be finite and at least one")]
     InvalidTargetPoints,
+    /// The facing term of the visibility cost needs a finite centre, a finite non-zero normal and an activation angle
+    /// within `[0, 180)` degrees.
+    #[error("visibility cost: facing term with activation {activation_deg}° (within [0, 180)), a finite centre and a finite non-zero normal")]
+    InvalidFacing {
+        /// The activation angle given (degrees).
+        activation_deg: f64,
+    },
     /// A caller's buffer has the wrong length.
     #[error("{what}: {found} entries, expected {expected}")]
     LengthMismatch {

@@ -17,6 +17,18 @@
 //! for a static target. `h` is zero, with a zero gradient, while every point is at least `margin` pixels inside the
 //! image; it is dimensionless (normalised image units).
 //!
+//! **Facing** ([D27](crate::theory#d27), [`VisibilityCost::with_facing`]): a target seen too obliquely is lost as
+//! surely as one out of the image. With the target's centre `o` and front normal `n` (base frame) and the optical
+//! centre `c(q)`, the incidence `θ` has `cos θ = nᵀ d / ‖d‖`, `d = c − o`; past an activation angle `θ_a` the cost adds
+//!
+//! ```text
+//! h_f(q)  = ½ δ² ,   δ = cos θ_a − cos θ  if θ > θ_a ,  0 otherwise
+//! ∇h_f(q) = −δ [ (R_bcᵀ (n − cos θ d/‖d‖) / ‖d‖)ᵀ , 0 0 0 ] · cVe · eJe(q)      (transposed)
+//! ```
+//!
+//! since `∂cos θ/∂c = (n − cos θ d/‖d‖)/‖d‖` and the optical centre moves at `ċ = R_bc v` for the camera twist `(v, ω)`
+//! in the camera frame (`R_bc` the camera's orientation in the base): its rotation does not change `θ`.
+//!
 //! The cost computes the projection itself from `q` (kinematics on the stack, no allocation), so it can be evaluated
 //! at the controller's predicted configuration `q̂` ([D6](crate::theory#d6)).
 
@@ -25,7 +37,7 @@ use crate::camera::{project_point, CameraIntrinsics, EyeInHand};
 use crate::feature::{point_interaction, InteractionRow};
 use crate::math::{all_finite, first_non_finite, JointVector};
 use crate::robot::{KinematicsWorkspace, SerialChain};
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 
 /// The visibility cost of the [module docs](self), a [`Cost`] named `"visibility"`.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +50,16 @@ pub struct VisibilityCost<const N: usize> {
     thresholds: [(f64, f64); 2],
     /// `(Δx, Δy)`.
     spans: [f64; 2],
+    /// The facing term, when set.
+    facing: Option<Facing>,
+}
+
+/// The facing term of [`VisibilityCost`]: the target's centre and unit front normal (base frame), and `cos θ_a`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Facing {
+    centre: Point3<f64>,
+    normal: Vector3<f64>,
+    cos_activation: f64,
 }
 
 impl<const N: usize> VisibilityCost<N> {
@@ -74,7 +96,36 @@ impl<const N: usize> VisibilityCost<N> {
             margin_px,
             thresholds: [(x_min, x_max), (y_min, y_max)],
             spans: [width / intrinsics.fx(), height / intrinsics.fy()],
+            facing: None,
         })
+    }
+
+    /// The cost with the facing term of the [module docs](self): the target, centred on `centre` (m, base frame) with
+    /// its front towards `front_normal` (base frame, normalised here), seen more obliquely than `activation_deg`
+    /// degrees from that normal adds `½ (cos θ_a − cos θ)²`.
+    ///
+    /// # Errors
+    /// [`CostError::InvalidFacing`] for an angle outside `[0, 180)`, a non-finite centre, a zero or non-finite normal.
+    pub fn with_facing(
+        mut self,
+        centre: Point3<f64>,
+        front_normal: Vector3<f64>,
+        activation_deg: f64,
+    ) -> Result<Self, CostError> {
+        let length = front_normal.norm();
+        let valid = (0.0..180.0).contains(&activation_deg)
+            && all_finite(&centre.coords)
+            && length.is_finite()
+            && length > 0.0;
+        if !valid {
+            return Err(CostError::InvalidFacing { activation_deg });
+        }
+        self.facing = Some(Facing {
+            centre,
+            normal: front_normal / length,
+            cos_activation: activation_deg.to_radians().cos(),
+        });
+        Ok(self)
     }
 
     /// The margin (px) within which the cost is active.
@@ -116,6 +167,29 @@ impl<const N: usize> VisibilityCost<N> {
             if wx != 0.0 || wy != 0.0 {
                 let (lx, ly) = point_interaction(x, y, 1.0 / depth);
                 twist_gradient += lx * wx + ly * wy;
+            }
+        }
+        if let Some(facing) = &self.facing {
+            let base_from_camera = camera_from_base.inverse();
+            let d = base_from_camera.translation.vector - facing.centre.coords;
+            let distance = d.norm();
+            // The optical centre on the target's centre is in its plane: θ = 90°, with no direction to move it along.
+            let (cos, direction) = if distance > 0.0 {
+                let cos = facing.normal.dot(&d) / distance;
+                (cos, (facing.normal - d * (cos / distance)) / distance)
+            } else {
+                (0.0, Vector3::zeros())
+            };
+            let delta = (facing.cos_activation - cos).max(0.0);
+            value += 0.5 * delta * delta;
+            if delta > 0.0 {
+                // ∂cos θ/∂v = R_bcᵀ ∂cos θ/∂c: the linear part of the twist-space gradient.
+                let in_camera = base_from_camera
+                    .rotation
+                    .inverse_transform_vector(&direction);
+                for (entry, component) in twist_gradient.iter_mut().zip(in_camera.iter()) {
+                    *entry -= delta * component;
+                }
             }
         }
         if let Some(g) = gradient.as_deref_mut() {

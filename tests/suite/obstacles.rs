@@ -4,7 +4,7 @@
 use crate::obstacle_fixture as fixture;
 
 use approx::assert_relative_eq;
-use nalgebra::{Isometry3, Point3, Vector1};
+use nalgebra::{Isometry3, Point3, Vector1, Vector3};
 use proptest::prelude::*;
 use servostack::avoidance::{
     Collider, CompositeCost, Cost, CostError, Geometry, JointLimits, LinkColliders, Obstacle,
@@ -67,6 +67,17 @@ proptest! {
         prop_assert!(error < 5e-2, "relative gradient error {error} at q = {q:?}");
     }
 
+    /// D27: the facing term's gradient, `−δ R_bcᵀ (n − cos θ d̂)/‖d‖` through the linear rows of `cVe eJe`, matches
+    /// central differences wherever the term is active (the image term off: no margin).
+    #[test]
+    fn facing_gradient_matches_finite_differences(s in proptest::collection::vec(-1.0..1.0f64, 6)) {
+        let cost = afma6_visibility_facing(0.0, Some(2.0));
+        let q = perturbed(&s);
+        prop_assume!(cost.value(&q).unwrap() > 0.0);
+        let error = gradient_error(&cost, &q, 1e-6);
+        prop_assert!(error < 1e-6, "relative gradient error {error} at q = {q:?}");
+    }
+
     /// ∇h through L_x cVe eJe matches central differences, with points in the active band.
     #[test]
     fn visibility_gradient_matches_finite_differences(s in proptest::collection::vec(-1.0..1.0f64, 6)) {
@@ -81,6 +92,12 @@ proptest! {
 /// The Afma6 camera looking at a 0.2 × 0.1 m rectangle 0.5 m ahead at the reference configuration, with a large
 /// margin so that the points fall in the active band near it.
 fn afma6_visibility(margin_px: f64) -> VisibilityCost<6> {
+    afma6_visibility_facing(margin_px, None)
+}
+
+/// [`afma6_visibility`], with the facing term of D27 active beyond `facing_deg` when given: the rectangle's centre
+/// 0.5 m ahead, its front normal back towards the camera of the reference configuration.
+fn afma6_visibility_facing(margin_px: f64, facing_deg: Option<f64>) -> VisibilityCost<6> {
     let robot = builtin::afma6().unwrap();
     let mut workspace = servostack::robot::KinematicsWorkspace::new();
     let state = robot
@@ -93,7 +110,80 @@ fn afma6_visibility(margin_px: f64) -> VisibilityCost<6> {
         .map(|&(x, y)| base_from_camera * Point3::new(x, y, 0.5))
         .collect();
     let intrinsics = CameraIntrinsics::new(800.0, 800.0, 320.0, 240.0, 640.0, 480.0).unwrap();
-    VisibilityCost::new(robot.chain, robot.camera, &intrinsics, &points, margin_px).unwrap()
+    let cost =
+        VisibilityCost::new(robot.chain, robot.camera, &intrinsics, &points, margin_px).unwrap();
+    match facing_deg {
+        None => cost,
+        Some(activation) => cost
+            .with_facing(
+                base_from_camera * Point3::new(0.0, 0.0, 0.5),
+                base_from_camera.rotation * Vector3::new(0.0, 0.0, -2.0),
+                activation,
+            )
+            .unwrap(),
+    }
+}
+
+/// D27 facing term: at the reference configuration the camera sees the rectangle head-on (θ = 0), so the term is zero
+/// even when active from 0°. With joint 0 (prismatic) moved by 0.1 m, the optical centre is displaced in the base frame
+/// and the value is ½ (cos θ_a − cos θ)², θ computed from that displacement and the head-on geometry; zero when active
+/// only beyond θ. Bad arguments are refused.
+#[test]
+fn facing_term_value_and_bad_arguments() {
+    let q = fixture::reference_q();
+    let head_on = afma6_visibility_facing(0.0, Some(0.0));
+    assert_eq!(head_on.value(&q).unwrap(), 0.0);
+    // Moving joint 0 (prismatic) moves the optical centre by Δ in the base frame; the incidence is then the angle
+    // between the normal (back along the optical axis) and the centre-to-camera vector d = −0.5 z_c + Δ.
+    let robot = builtin::afma6().unwrap();
+    let mut workspace = servostack::robot::KinematicsWorkspace::new();
+    let camera_at =
+        |q: &JointVector<6>, workspace: &mut servostack::robot::KinematicsWorkspace<6>| {
+            let state = robot.chain.kinematics(workspace, q).unwrap();
+            robot.camera.base_from_camera(state.base_from_tip())
+        };
+    let reference = camera_at(&q, &mut workspace);
+    let mut moved = q;
+    moved[0] += 0.1;
+    let shifted = camera_at(&moved, &mut workspace);
+    let centre = reference * Point3::new(0.0, 0.0, 0.5);
+    let d = shifted.translation.vector - centre.coords;
+    let normal = reference.rotation * Vector3::new(0.0, 0.0, -1.0);
+    let cos = normal.dot(&d) / d.norm();
+    assert!(cos < 0.99, "the move turns the view: cos θ = {cos}");
+    // The image term stays zero: every point still inside the image.
+    assert_eq!(afma6_visibility(0.0).value(&moved).unwrap(), 0.0);
+    for activation_deg in [0.0, 10.0] {
+        let expected = 0.5
+            * (f64::to_radians(activation_deg).cos() - cos)
+                .max(0.0)
+                .powi(2);
+        let cost = afma6_visibility_facing(0.0, Some(activation_deg));
+        assert_relative_eq!(cost.value(&moved).unwrap(), expected, max_relative = 1e-12);
+    }
+    // Past the angle only: active from 89°, the same view costs nothing.
+    assert_eq!(
+        afma6_visibility_facing(0.0, Some(89.0))
+            .value(&moved)
+            .unwrap(),
+        0.0
+    );
+    let base = afma6_visibility(0.0);
+    let centre = Point3::new(0.0, 0.0, 0.0);
+    let normal = Vector3::new(0.0, 0.0, 1.0);
+    for (centre, normal, angle) in [
+        (centre, normal, 180.0),
+        (centre, normal, -1.0),
+        (centre, normal, f64::NAN),
+        (centre, Vector3::zeros(), 10.0),
+        (centre, Vector3::new(f64::NAN, 0.0, 1.0), 10.0),
+        (Point3::new(f64::INFINITY, 0.0, 0.0), normal, 10.0),
+    ] {
+        assert!(matches!(
+            base.clone().with_facing(centre, normal, angle),
+            Err(CostError::InvalidFacing { .. })
+        ));
+    }
 }
 
 #[test]

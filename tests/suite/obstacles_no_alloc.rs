@@ -35,9 +35,17 @@ fn controller_step_with_obstacles_and_visibility_allocates_nothing() {
         0.1,
     )
     .unwrap()
-    .with_obstacles(fixture::obstacle_cost(0.15))
-    .with_visibility_margin(200.0)
-    .unwrap();
+    .with_obstacles(fixture::obstacle_cost(0.15));
+    // A wide image band, and the facing term of D27 from 10° (the camera sees the target 20° off its normal): both active.
+    let visibility = scene.visibility_cost(200.0, Some(10.0)).unwrap();
+    let q = fixture::reference_q();
+    let image_only = scene
+        .visibility_cost(200.0, None)
+        .unwrap()
+        .value(&q)
+        .unwrap();
+    assert!(image_only > 0.0 && visibility.value(&q).unwrap() > image_only);
+    let scene = scene.with_visibility(visibility);
     let desired_view = scene.view_from(&c_from_o).unwrap();
     let desired = desired_view.observation().unwrap();
     let tasks = paper_tasks(&desired, 0.5, 0.5, [0.5; 4], InteractionSource::Exact).unwrap();

@@ -427,11 +427,13 @@ fn incidence_at<const N: usize>(
 /// D27: a target seen more obliquely than `max_incidence_deg` is not tracked. A start beyond it is not a valid
 /// situation (the error names the start and the angle), and a run whose camera turns the target beyond it ends as
 /// `image_degenerate` at the first iteration past the threshold, with the angle in its reason; the check off (180°),
-/// the same run goes on. Out-of-range thresholds are refused.
+/// the same run goes on. Out-of-range bounds and facing margins are refused.
 #[test]
 fn a_target_seen_too_obliquely_is_not_tracked() {
     let mut scenario = Scenario::from_file(&assets().join("paper_afma6.toml")).unwrap();
     scenario.simulation.max_incidence_deg = 180.0;
+    // The full method's facing margin must stay within the bound; the classical law's runs below do not use it.
+    scenario.simulation.facing_margin_deg = 0.0;
     let experiment = scenario.experiment::<6>().unwrap();
     let start = incidence_at(&experiment, &experiment.start);
     // The classical law's run, unchecked: the largest incidence it reaches after its start.
@@ -480,17 +482,25 @@ fn a_target_seen_too_obliquely_is_not_tracked() {
     assert_eq!(checked.iterations(), first_past);
     assert_eq!(checked.records.len(), first_past);
 
-    for bad in [0.0, -5.0, 180.5, f64::NAN, f64::INFINITY] {
-        scenario.simulation.max_incidence_deg = bad;
-        assert!(
-            matches!(
-                scenario.experiment::<6>(),
-                Err(ScenarioError::Simulation(SimError::InvalidParameter {
-                    name: "max_incidence_deg",
-                    ..
-                }))
-            ),
-            "max_incidence_deg = {bad} accepted"
-        );
+    // (max_incidence_deg, facing_margin_deg, the parameter refused)
+    let refused = [
+        (0.0, 0.0, "max_incidence_deg"),
+        (-5.0, 0.0, "max_incidence_deg"),
+        (180.5, 0.0, "max_incidence_deg"),
+        (f64::NAN, 0.0, "max_incidence_deg"),
+        (f64::INFINITY, 0.0, "max_incidence_deg"),
+        (80.0, -1.0, "facing_margin_deg"),
+        (80.0, 80.5, "facing_margin_deg"),
+        (80.0, f64::NAN, "facing_margin_deg"),
+    ];
+    for (incidence, margin, parameter) in refused {
+        scenario.simulation.max_incidence_deg = incidence;
+        scenario.simulation.facing_margin_deg = margin;
+        match scenario.experiment::<6>() {
+            Err(ScenarioError::Simulation(SimError::InvalidParameter { name, .. })) => {
+                assert_eq!(name, parameter)
+            }
+            other => panic!("{incidence}° with a {margin}° margin: {other:?}"),
+        }
     }
 }
