@@ -419,8 +419,8 @@ pub struct SimulationParameters {
     /// The largest angle (degrees) between the target's normal and its line of sight at which the target is still
     /// tracked ([`Scene::target_incidence_deg`]; [D27](crate::theory#d27)). Seen more obliquely, or from behind, the
     /// run ends as [`Outcome::ImageDegenerate`], and a start so seen is not a valid situation. Default 80°: the target
-    /// then spans `cos 80° ≈ 0.17` of its head-on width across its normal, where marker and blob detectors lose it;
-    /// within `(0, 180]`, 180 switching the check off.
+    /// then spans `cos 80° ≈ 0.17` of its head-on width across its normal, a permissive bound for a detector (set it
+    /// to the angle your tracker handles); within `(0, 180]`, 180 switching the check off.
     pub max_incidence_deg: f64,
     /// The full method keeps the target facing the camera: its visibility cost (the default one, and a scenario's
     /// `[visibility]`) rises from `max_incidence_deg − facing_margin_deg` on ([D27](crate::theory#d27),
