@@ -891,8 +891,9 @@ pub struct Run<const N: usize> {
 }
 
 impl<const N: usize> Run<N> {
-    /// The number of iterations performed (the index of the iteration at which the run ended, plus one; 0 when it
-    /// ended before its first record, e.g. a target lost at the start).
+    /// The number of iterations recorded: the index of the last recorded iteration, plus one. A run whose target is
+    /// lost when iteration `k` observes it (out of the image, behind the camera, seen too obliquely) records `k`; 0
+    /// when it ended before its first record, e.g. a target lost at the start.
     pub fn iterations(&self) -> usize {
         self.totals.iterations
     }
