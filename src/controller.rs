@@ -269,6 +269,14 @@ pub struct ControllerParameters {
     /// (convergence-domain study, 200 draws per family, seed 1): 0 and 0.05 s⁻¹ give the Afma6's uniform starts 107
     /// and 101 converged, 0.2 s⁻¹ 69; the other families do not move.
     pub escape_growth_rate: f64,
+    /// `r_push` (> 1, dimensionless), the early push of D28: with no task out and the sequence incomplete, the next
+    /// task is pushed before the stack has settled when the law with it pushed, `‖u⁺‖` (the joint units per second of
+    /// `ε_add`), has grown to `r_push` times its smallest value since the last change (tested from one transition
+    /// after that change). The current stack is then carrying the robot towards a configuration where the next task's
+    /// projected Jacobian is singular: the task is pushed while the robot approaches it, not once it has passed it.
+    /// Full method only (robust rule, removals allowed); default 4; `+∞` switches it off. Window and measurements:
+    /// theory D28.
+    pub early_push_ratio: f64,
     /// Whether the controller **holds** rather than let the law cross a hard limit (D13; default `false` since the
     /// lock of D26, which lets the runs the hold would stop slide along the limit instead): after the
     /// fallback, when the configuration predicted `max(T, 1/μ)` ahead is past a hard limit (or loses the target, the
@@ -323,6 +331,7 @@ impl Default for ControllerParameters {
             escape_achieved_error: 1e-3,
             escape_error: 0.005,
             escape_growth_rate: 0.0,
+            early_push_ratio: 4.0,
             hold_before_limit: false,
             braking_rate: 5.0,
             lock_band: 1e-5,
@@ -443,6 +452,13 @@ impl ControllerParameters {
             v,
             !v.is_nan() && v >= 0.0,
             "≥ 0 (+∞: never)",
+        )?;
+        let v = self.early_push_ratio;
+        check(
+            "early_push_ratio",
+            v,
+            !v.is_nan() && v > 1.0,
+            "> 1 (+∞: never)",
         )?;
         let v = self.braking_rate;
         check(
@@ -684,6 +700,9 @@ pub struct StackController<const N: usize> {
     held: Option<(usize, f64)>,
     change_pending: bool,
     last_change_time: f64,
+    /// D28: `(t_change, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change at
+    /// `t_change`; reset at each change.
+    early_push_reference: Option<(f64, f64)>,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,
     law_workspace: ControlWorkspace<N>,
@@ -775,6 +794,7 @@ impl<const N: usize> StackController<N> {
             held: None,
             change_pending: false,
             last_change_time: 0.0,
+            early_push_reference: None,
             last_removal_time: f64::NEG_INFINITY,
             last_stack_velocity_norm: f64::INFINITY,
             law_workspace: ControlWorkspace::new(tasks),
@@ -1591,6 +1611,42 @@ impl<const N: usize> StackController<N> {
                 >= self.parameters.settle_transitions / law.transition_gain()
     }
 
+    /// D28: before the stack has settled, push the next task once the law with it, `‖u⁺‖`, has grown to `r_push`
+    /// times its smallest value since the last change (full method, no task out, one transition after the change).
+    fn push_early(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        gradient: &JointVector<N>,
+        iteration: usize,
+        time: f64,
+    ) -> Result<Option<EventKind>, ControllerError> {
+        let parameters = &self.parameters;
+        if !parameters.early_push_ratio.is_finite()
+            || !parameters.allow_removal
+            || parameters.rule != DecisionRule::Robust
+            || !self.removed.is_empty()
+            || self.next_push >= self.sequence_len()
+            || time - self.last_change_time < parameters.change_transitions / law.transition_gain()
+        {
+            return Ok(None);
+        }
+        let ratio = parameters.early_push_ratio;
+        self.set_trial_stack(Some(self.next_push), None);
+        let with_next = self.trial_law(law, tasks, gradient)?.norm();
+        match self.early_push_reference {
+            Some((since, smallest)) if since == self.last_change_time => {
+                if with_next > ratio * smallest {
+                    self.push_next(iteration, time);
+                    return Ok(Some(EventKind::Push));
+                }
+                self.early_push_reference = Some((since, smallest.min(with_next)));
+            }
+            _ => self.early_push_reference = Some((self.last_change_time, with_next)),
+        }
+        Ok(None)
+    }
+
     /// D7, D13, D5: once settled, put a removed task back (with hysteresis and dwell), fall back when one cannot come
     /// back, or push the next task.
     #[allow(clippy::too_many_arguments)]
@@ -1617,7 +1673,7 @@ impl<const N: usize> StackController<N> {
             parameters.settle_velocity
         };
         if !self.settled(law, time, result.stack_velocity_norm, epsilon_add) {
-            return Ok(None);
+            return self.push_early(law, tasks, prediction.gradient, iteration, time);
         }
         if self.removed.is_empty() {
             if self.next_push < self.sequence_len() {

@@ -1,6 +1,8 @@
 //! The stack controller on synthetic joint-space tasks (theory §6, D3–D7): the task that drives a joint into its limit is
 //! the one removed, the limit is not hit, the task comes back, and the velocity is continuous at every event.
 
+use crate::counting_allocator::allocations_during;
+use nalgebra::DVector;
 use servostack::avoidance::{CompositeCost, Cost, CostError, JointLimits};
 use servostack::controller::{
     ControllerError, ControllerParameters, ControllerStatus, DecisionRule, EventKind,
@@ -9,7 +11,7 @@ use servostack::controller::{
 use servostack::law::ControlLaw;
 use servostack::linalg::{null_space_projector, RankPolicy};
 use servostack::math::JointVector;
-use servostack::task::{LinearTask, Task, TaskJacobian, TaskValue};
+use servostack::task::{LinearTask, Task, TaskError, TaskJacobian, TaskValue};
 
 /// Three 1-row tasks on 3 joints: t0 holds joint 2 at 0, t1 drives joint 0 to 1.05 (beyond its hard limit 1), t2
 /// drives joint 1 to 0.3.
@@ -33,7 +35,11 @@ fn tasks_and_values() -> (Vec<LinearTask<3>>, Vec<TaskValue<3>>) {
 }
 
 /// Evaluates every task at `q`.
-fn evaluate(tasks: &[LinearTask<3>], values: &mut [TaskValue<3>], q: &JointVector<3>) {
+fn evaluate<T: Task<3, JointVector<3>>>(
+    tasks: &[T],
+    values: &mut [TaskValue<3>],
+    q: &JointVector<3>,
+) {
     for (task, value) in tasks.iter().zip(values.iter_mut()) {
         task.evaluate(q, value).unwrap();
     }
@@ -61,6 +67,8 @@ struct Run {
     /// The controller's status at the end, and whether it says it held.
     status: ControllerStatus,
     held: bool,
+    /// Heap allocations made by the controller's steps that changed nothing in the stack.
+    allocations_without_event: usize,
 }
 
 impl Run {
@@ -100,8 +108,8 @@ fn run(parameters: ControllerParameters, kappa: f64) -> Run {
 }
 
 /// Runs `tasks` from `start` with the joint-limit cost, `iterations` periods of 10 ms or until a limit is hit.
-fn run_tasks(
-    tasks: Vec<LinearTask<3>>,
+fn run_tasks<T: Task<3, JointVector<3>>>(
+    tasks: Vec<T>,
     start: JointVector<3>,
     parameters: ControllerParameters,
     kappa: f64,
@@ -111,8 +119,8 @@ fn run_tasks(
 }
 
 /// As [`run_tasks`], with a `guard` cost given to the controller (D6 (d), D7's guard relief).
-fn run_guarded(
-    tasks: Vec<LinearTask<3>>,
+fn run_guarded<T: Task<3, JointVector<3>>>(
+    tasks: Vec<T>,
     start: JointVector<3>,
     parameters: ControllerParameters,
     kappa: f64,
@@ -130,10 +138,13 @@ fn run_guarded(
     let (dt, mut q) = (0.01, start);
     let (mut sent, mut laws) = (Vec::new(), Vec::new());
     let mut hit = None;
+    let mut allocations_without_event = 0;
     for iteration in 0..iterations {
         evaluate(&tasks, &mut values, &q);
-        let step = controller
-            .step_guarded(
+        let events_before = controller.events().len();
+        let mut result = None;
+        let allocations = allocations_during(|| {
+            result = Some(controller.step_guarded(
                 &law,
                 &values,
                 cost,
@@ -141,8 +152,12 @@ fn run_guarded(
                 &q,
                 iteration,
                 iteration as f64 * dt,
-            )
-            .unwrap();
+            ));
+        });
+        let step = result.unwrap().unwrap();
+        if controller.events().len() == events_before {
+            allocations_without_event += allocations;
+        }
         sent.push(step.velocity);
         laws.push(*controller.law_workspace().last_output().law());
         q += step.velocity * dt;
@@ -192,6 +207,7 @@ fn run_guarded(
         mu: law.transition_gain(),
         status: controller.status(),
         held: controller.is_held(),
+        allocations_without_event,
     }
 }
 
@@ -749,7 +765,21 @@ fn invalid_parameters_and_task_count() {
             "lock_band",
         )
     });
-    for (parameters, expected) in cases.into_iter().chain(braking).chain(lock) {
+    let early_push = [f64::NAN, 1.0, 0.5, -1.0].map(|early_push_ratio| {
+        (
+            ControllerParameters {
+                early_push_ratio,
+                ..Default::default()
+            },
+            "early_push_ratio",
+        )
+    });
+    for (parameters, expected) in cases
+        .into_iter()
+        .chain(braking)
+        .chain(lock)
+        .chain(early_push)
+    {
         match StackController::new(parameters, &values) {
             Err(ControllerError::InvalidParameter { name, .. }) => assert_eq!(name, expected),
             other => panic!("{expected}: expected InvalidParameter, got {other:?}"),
@@ -843,6 +873,105 @@ fn a_singular_push_is_undone_before_the_limit() {
         "pushed at {push}, removed at {removal}"
     );
     run.assert_limits_kept_until_fallback();
+}
+
+/// A one-row task given by a function of `q`: `(e, J)`, gain 1 s⁻¹.
+struct FnTask {
+    name: &'static str,
+    function: fn(&JointVector<3>) -> (f64, [f64; 3]),
+}
+
+impl Task<3, JointVector<3>> for FnTask {
+    fn name(&self) -> &str {
+        self.name
+    }
+    fn rows(&self) -> usize {
+        1
+    }
+    fn gain(&self) -> f64 {
+        1.0
+    }
+    fn evaluate(&self, q: &JointVector<3>, out: &mut TaskValue<3>) -> Result<(), TaskError> {
+        let (error, row) = (self.function)(q);
+        out.set(
+            self.name,
+            &DVector::from_element(1, error),
+            &TaskJacobian::from_fn(1, |_, k| row[k]),
+        )
+    }
+}
+
+/// D28. "sum" drives `q0 + q2` to 0.7: alone, its least-norm motion moves `q0` and `q2` together, to 0.35 each.
+/// "lever", `e = (0.351 − q0) q1 − 0.02`, `J = [−q1, 0.351 − q0, 0]`: at `q1 = 0`, its Jacobian projected into the
+/// null space of "sum" is `0.351 − q0` along `q1`, nearly singular where "sum" alone converges; both are achieved at
+/// regular configurations too (`q0` below 0.35, `q2 = 0.7 − q0`, `q1 = 0.02/(0.351 − q0)`). Pushed once "sum" has
+/// settled (`ε_add` 10⁻³: `|e_sum| < 1.4·10⁻³`, `0.351 − q0 ≈ 1.7·10⁻³`), its law asks `q1` for about
+/// `0.02/1.7·10⁻³ ≈ 12` rad/s. The early push (default `r_push`) sends it in while `‖u⁺‖` is within `r_push` times
+/// its smallest value, at most the law at the start (0.5 rad/s): a jump below `r_push · 0.5 = 2` rad/s.
+#[test]
+fn the_next_task_is_pushed_before_its_push_turns_singular() {
+    let tasks = || {
+        vec![
+            FnTask {
+                name: "sum",
+                function: |q| (q[0] + q[2] - 0.7, [1.0, 0.0, 1.0]),
+            },
+            FnTask {
+                name: "lever",
+                function: |q| ((0.351 - q[0]) * q[1] - 0.02, [-q[1], 0.351 - q[0], 0.0]),
+            },
+        ]
+    };
+    let run = |early_push_ratio| {
+        let parameters = ControllerParameters {
+            settle_velocity_with_removal: 1e-3,
+            early_push_ratio,
+            ..ControllerParameters::default()
+        };
+        run_tasks(tasks(), JointVector::zeros(), parameters, 1.0, 3000)
+    };
+    let default = ControllerParameters::default().early_push_ratio;
+    let (early, late) = (run(default), run(f64::INFINITY));
+    let push = |run: &Run| run.first(EventKind::Push, 1).expect("lever pushed");
+    let law_jump = |run: &Run| {
+        let k = push(run);
+        (run.laws[k] - run.laws[k - 1]).norm()
+    };
+    assert!(
+        push(&early) < push(&late),
+        "{:?} / {:?}",
+        early.events,
+        late.events
+    );
+    assert!(
+        law_jump(&late) > 5.0,
+        "late push: law jump {}",
+        law_jump(&late)
+    );
+    assert!(
+        law_jump(&early) < 2.0,
+        "early push: law jump {}",
+        law_jump(&early)
+    );
+    assert_eq!(
+        early.first(EventKind::Remove, 1),
+        None,
+        "{:?}",
+        early.events
+    );
+    assert_eq!(early.hit, None);
+    // Watching `‖u⁺‖` at every period (a trial stack solve) allocates nothing.
+    assert_eq!(early.allocations_without_event, 0);
+    let q_end = early
+        .sent
+        .iter()
+        .fold(JointVector::<3>::zeros(), |q, v| q + v * 0.01);
+    let sum = tasks()[0].function;
+    let lever = tasks()[1].function;
+    assert!(
+        sum(&q_end).0.abs() < 1e-6 && lever(&q_end).0.abs() < 1e-6,
+        "q = {q_end:?}"
+    );
 }
 
 /// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
