@@ -66,6 +66,11 @@
 //!      **holds** instead of letting the law cross the limit: every task is dropped, the law is the avoidance alone
 //!      ([`EventKind::Hold`], [`ControllerStatus::Held`]);
 //!    * when no task is out, the next task of the list is **pushed** (D5).
+//! 5. Before the robot has settled, with no task out and a task still to push (full method only, D28): the law the
+//!    stack would have with the next task pushed, `u⁺`, is computed at every period from `n_change/μ` after the last
+//!    change; once `‖u⁺‖` exceeds [`ControllerParameters::early_push_ratio`] times its smallest value since that change,
+//!    the robot is heading for a configuration where the next task's projected Jacobian is singular, and the task is
+//!    **pushed** then rather than once the stack has settled past it.
 //!
 //! With a **reserve task** ([`StackController::with_reserve_task`], D23, D24: the image points for visual servoing), it
 //! takes the place of the last task of the sequence, once: before steps 2–4, as soon as the sequence is complete,
@@ -700,9 +705,9 @@ pub struct StackController<const N: usize> {
     held: Option<(usize, f64)>,
     change_pending: bool,
     last_change_time: f64,
-    /// D28: `(t_change, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change at
-    /// `t_change`; reset at each change.
-    early_push_reference: Option<(f64, f64)>,
+    /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
+    /// `k − 1` (`k` = the event count then); reset at each change.
+    early_push_reference: Option<(usize, f64)>,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,
     law_workspace: ControlWorkspace<N>,
@@ -1634,15 +1639,16 @@ impl<const N: usize> StackController<N> {
         let ratio = parameters.early_push_ratio;
         self.set_trial_stack(Some(self.next_push), None);
         let with_next = self.trial_law(law, tasks, gradient)?.norm();
+        let changes = self.events.len();
         match self.early_push_reference {
-            Some((since, smallest)) if since == self.last_change_time => {
+            Some((since, smallest)) if since == changes => {
                 if with_next > ratio * smallest {
                     self.push_next(iteration, time);
                     return Ok(Some(EventKind::Push));
                 }
                 self.early_push_reference = Some((since, smallest.min(with_next)));
             }
-            _ => self.early_push_reference = Some((self.last_change_time, with_next)),
+            _ => self.early_push_reference = Some((changes, with_next)),
         }
         Ok(None)
     }
