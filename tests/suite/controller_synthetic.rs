@@ -875,10 +875,11 @@ fn a_singular_push_is_undone_before_the_limit() {
     run.assert_limits_kept_until_fallback();
 }
 
-/// A one-row task given by a function of `q`: `(e, J)`, gain 1 s⁻¹.
+/// A one-row task given by a function of `q` and two constants `c`: `(e, J)`, gain 1 s⁻¹.
 struct FnTask {
     name: &'static str,
-    function: fn(&JointVector<3>) -> (f64, [f64; 3]),
+    constants: [f64; 2],
+    function: fn(&JointVector<3>, [f64; 2]) -> (f64, [f64; 3]),
 }
 
 impl Task<3, JointVector<3>> for FnTask {
@@ -892,7 +893,7 @@ impl Task<3, JointVector<3>> for FnTask {
         1.0
     }
     fn evaluate(&self, q: &JointVector<3>, out: &mut TaskValue<3>) -> Result<(), TaskError> {
-        let (error, row) = (self.function)(q);
+        let (error, row) = (self.function)(q, self.constants);
         out.set(
             self.name,
             &DVector::from_element(1, error),
@@ -901,58 +902,56 @@ impl Task<3, JointVector<3>> for FnTask {
     }
 }
 
-/// D28. "sum" drives `q0 + q2` to 0.7: alone, its least-norm motion moves `q0` and `q2` together, to 0.35 each.
-/// "lever", `e = (0.351 − q0) q1 − 0.02`, `J = [−q1, 0.351 − q0, 0]`: at `q1 = 0`, its Jacobian projected into the
-/// null space of "sum" is `0.351 − q0` along `q1`, nearly singular where "sum" alone converges; both are achieved at
-/// regular configurations too (`q0` below 0.35, `q2 = 0.7 − q0`, `q1 = 0.02/(0.351 − q0)`). Pushed once "sum" has
-/// settled (`ε_add` 10⁻³: `|e_sum| < 1.4·10⁻³`, `0.351 − q0 ≈ 1.7·10⁻³`), its law asks `q1` for about
-/// `0.02/1.7·10⁻³ ≈ 12` rad/s. The early push (default `r_push`) sends it in while `‖u⁺‖` is within `r_push` times
-/// its smallest value, at most the law at the start (0.5 rad/s): a jump below `r_push · 0.5 = 2` rad/s.
-#[test]
-fn the_next_task_is_pushed_before_its_push_turns_singular() {
-    let tasks = || {
-        vec![
-            FnTask {
-                name: "sum",
-                function: |q| (q[0] + q[2] - 0.7, [1.0, 0.0, 1.0]),
-            },
-            FnTask {
-                name: "lever",
-                function: |q| ((0.351 - q[0]) * q[1] - 0.02, [-q[1], 0.351 - q[0], 0.0]),
-            },
-        ]
-    };
+/// D28's two tasks. "sum" drives `q0 + q2` to 0.7: alone, its least-norm motion moves `q0` and `q2` together, to 0.35
+/// each. "lever", `e = (c − q0) q1 − d`, `J = [−q1, c − q0, 0]` with `c` just above 0.35: at `q1 = 0`, its Jacobian
+/// projected into the null space of "sum" is `c − q0` along `q1`, nearly singular where "sum" alone converges; both
+/// are achieved at regular configurations too (`q0` below 0.35, `q2 = 0.7 − q0`, `q1 = d/(c − q0)`).
+fn sum_and_lever(c: f64, d: f64) -> Vec<FnTask> {
+    vec![
+        FnTask {
+            name: "sum",
+            constants: [0.0; 2],
+            function: |q, _| (q[0] + q[2] - 0.7, [1.0, 0.0, 1.0]),
+        },
+        FnTask {
+            name: "lever",
+            constants: [c, d],
+            function: |q, [c, d]| ((c - q[0]) * q[1] - d, [-q[1], c - q[0], 0.0]),
+        },
+    ]
+}
+
+/// Runs [`sum_and_lever`] from `q = 0` for 30 s, pushing "lever" by D28 with the default `r_push` (`early`) and only
+/// once "sum" has settled (`late`, `r_push = +∞`); `ε_add` 10⁻³: "sum" settles at `|e_sum| < 1.4·10⁻³`, where
+/// `c − q0 ≈ c − 0.3493`.
+fn early_and_late(c: f64, d: f64) -> (Run, Run) {
     let run = |early_push_ratio| {
         let parameters = ControllerParameters {
             settle_velocity_with_removal: 1e-3,
             early_push_ratio,
             ..ControllerParameters::default()
         };
-        run_tasks(tasks(), JointVector::zeros(), parameters, 1.0, 3000)
+        run_tasks(
+            sum_and_lever(c, d),
+            JointVector::zeros(),
+            parameters,
+            1.0,
+            3000,
+        )
     };
     let default = ControllerParameters::default().early_push_ratio;
-    let (early, late) = (run(default), run(f64::INFINITY));
-    let push = |run: &Run| run.first(EventKind::Push, 1).expect("lever pushed");
-    let law_jump = |run: &Run| {
-        let k = push(run);
-        (run.laws[k] - run.laws[k - 1]).norm()
-    };
-    assert!(
-        push(&early) < push(&late),
-        "{:?} / {:?}",
-        early.events,
-        late.events
-    );
-    assert!(
-        law_jump(&late) > 5.0,
-        "late push: law jump {}",
-        law_jump(&late)
-    );
-    assert!(
-        law_jump(&early) < 2.0,
-        "early push: law jump {}",
-        law_jump(&early)
-    );
+    (run(default), run(f64::INFINITY))
+}
+
+/// The iteration "lever" was first pushed at, and the law's jump there.
+fn lever_push(run: &Run) -> (usize, f64) {
+    let k = run.first(EventKind::Push, 1).expect("lever pushed");
+    (k, (run.laws[k] - run.laws[k - 1]).norm())
+}
+
+/// D28 checked on one early run: "lever" never removed, no limit hit, no allocation in the steps without an event,
+/// both tasks achieved at the end.
+fn assert_early_run_converges(early: &Run, c: f64, d: f64) {
     assert_eq!(
         early.first(EventKind::Remove, 1),
         None,
@@ -966,12 +965,52 @@ fn the_next_task_is_pushed_before_its_push_turns_singular() {
         .sent
         .iter()
         .fold(JointVector::<3>::zeros(), |q, v| q + v * 0.01);
-    let sum = tasks()[0].function;
-    let lever = tasks()[1].function;
+    for task in sum_and_lever(c, d) {
+        let error = (task.function)(&q_end, task.constants).0;
+        assert!(
+            error.abs() < 1e-6,
+            "{}: {error} at q = {q_end:?}",
+            task.name
+        );
+    }
+}
+
+/// D28 with `c = 0.351`, `d = 0.02`. Pushed once "sum" has settled (`c − q0 ≈ 1.7·10⁻³`), the law of "lever" asks
+/// `q1` for about `0.02/1.7·10⁻³ ≈ 12` rad/s. The early push (default `r_push`) sends it in while `‖u⁺‖` is within
+/// `r_push` times its smallest value, at most the law at the start (0.5 rad/s): a jump below `r_push · 0.5 = 2` rad/s.
+#[test]
+fn the_next_task_is_pushed_before_its_push_turns_singular() {
+    let (c, d) = (0.351, 0.02);
+    let (early, late) = early_and_late(c, d);
+    let ((early_push, early_jump), (late_push, late_jump)) =
+        (lever_push(&early), lever_push(&late));
     assert!(
-        sum(&q_end).0.abs() < 1e-6 && lever(&q_end).0.abs() < 1e-6,
-        "q = {q_end:?}"
+        early_push < late_push,
+        "{:?} / {:?}",
+        early.events,
+        late.events
     );
+    assert!(late_jump > 5.0, "late push: law jump {late_jump}");
+    assert!(early_jump < 2.0, "early push: law jump {early_jump}");
+    assert_early_run_converges(&early, c, d);
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(32))]
+
+    /// D28 over the family: `c − 0.35` from 5·10⁻⁴ to 2·10⁻³ and `d` from 0.02 to 0.04, so that the settled push asks
+    /// for `d/(c − 0.3493)` ≥ 7 rad/s. The early push comes first, with a jump below `r_push · 0.5 = 2` rad/s, and the
+    /// run converges as above.
+    #[test]
+    fn the_early_push_holds_over_lever_geometries(offset in 5e-4..2e-3f64, d in 0.02..0.04f64) {
+        let c = 0.35 + offset;
+        let (early, late) = early_and_late(c, d);
+        let ((early_push, early_jump), (late_push, late_jump)) = (lever_push(&early), lever_push(&late));
+        proptest::prop_assert!(early_push < late_push, "{:?} / {:?}", early.events, late.events);
+        proptest::prop_assert!(late_jump > 5.0, "late push: law jump {}", late_jump);
+        proptest::prop_assert!(early_jump < 2.0, "early push: law jump {}", early_jump);
+        assert_early_run_converges(&early, c, d);
+    }
 }
 
 /// The first push happens at the first step, with that step's iteration and time (a clock need not start at 0), and
