@@ -16,7 +16,8 @@
 //!
 //! Each level is solved by one allocation-free SVD of `J̃_i` ([`crate::linalg::ColumnSvd`]), or without it on one of
 //! two certified paths ([D15](crate::theory#d15)): a first level of at least `N` rows certified to have full column
-//! rank and to be well conditioned, by the normal equations ([`crate::linalg::solve_full_column_rank`]); a level of
+//! rank and to be well conditioned (a square one once its rows are equilibrated), by the normal equations
+//! ([`crate::linalg::solve_full_column_rank`]); a level of
 //! one or two rows certified to have full row rank and to be well conditioned, in closed form from the `1 × 1` or
 //! `2 × 2` matrix `J̃_i J̃_iᵀ` ([`crate::linalg::solve_small_stack_level`]). Both answer only when the SVD's rank decision
 //! is certain, and then agree with it to rounding. The velocity term may use
@@ -148,7 +149,8 @@ pub struct LevelDiagnostics {
     pub rank: usize,
     /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0); for a [`Self::certified`]
     /// level of full column rank, the certificate's lower bound on it, `1/‖L⁻¹‖_F` less rounding, within a factor `√N`
-    /// of the exact value; for a certified level of one or two rows, the value from the closed-form eigenvalue of
+    /// of the exact value (for a square level, that bound for the equilibrated rows divided by their largest scale: a
+    /// looser lower bound); for a certified level of one or two rows, the value from the closed-form eigenvalue of
     /// `J̃_i J̃_iᵀ` ([D15](crate::theory#d15)).
     pub smallest_kept_singular_value: Option<f64>,
     /// `true` when the level was solved without an SVD on a certified path ([D15](crate::theory#d15)): full column
@@ -372,10 +374,18 @@ pub fn solve_stack<'w, const N: usize>(
                     .map_err(|source| StackError::Linalg { level, source })?;
                 let (rank, smallest) = (svd.rank(), svd.smallest_kept());
                 // Worth trying next step if this one would have passed the certificate's condition bound
-                // (‖J̃‖_F = ‖J_i‖_F here, since P^A_{i−1} = I).
+                // (‖J̃‖_F = ‖J_i‖_F here, since P^A_{i−1} = I); for a square level, whose rows are equilibrated first
+                // (the bound then applies to a condition number the SVD of J_i does not give), if σ_min clears the
+                // certificate's rank test, which no bound below σ_min can pass otherwise.
                 *try_certified = eligible
                     && rank == N
-                    && smallest.is_some_and(|s| s * FAST_PATH_CONDITION_BOUND >= scale);
+                    && smallest.is_some_and(|s| {
+                        if rows == N {
+                            s > 2.0 * policy.threshold(scale)
+                        } else {
+                            s * FAST_PATH_CONDITION_BOUND >= scale
+                        }
+                    });
                 (rank, smallest)
             }
         };

@@ -41,7 +41,18 @@ pub const FAST_PATH_CONDITION_BOUND: f64 = 1e3;
 /// the result agrees with the SVD's `Σ v_k (u_kᵀ r)/σ_k` within `10⁻¹² · ‖r‖/σ_min(A)` (tested against the SVD on
 /// random well- and ill-conditioned matrices).
 ///
-/// Returns the certified lower bound `s ≤ σ_min(A)`. Allocates nothing; `out` is written only on success.
+/// **Square matrices** (`m = N`): `A⁺ r = A⁻¹ r` does not change when a row of `A` and its entry of `r` are scaled
+/// together, so each row is first scaled by a power of two `d_i` (exact) that brings its norm into `[1, 2)`, and the
+/// above is applied to `D A` and `D r`. The condition bound then applies to `D A` (row equilibration, which is within
+/// `√N` of the best diagonal scaling, van der Sluis), the solution keeps the accuracy `κ(DA) ε` and
+/// `σ_min(A) ≥ s/max d_i` replaces `s` in the rank test, which is still the SVD's of `A` itself. That bound is loose
+/// when a short row carries `σ_min(A)`; when it misses the threshold, `σ_min(A) ≥ 1/‖A⁻¹‖_F` is tried, with the
+/// columns `A⁻¹ e_i = d_i G⁻¹ (DA)ᵀ e_i` from the same factor and `4 · 2 (m + N + 1) ε ‖DA‖_F² / s²` of relative
+/// rounding taken off. A least-squares solution (`m > N`) depends on the rows' weights, so taller matrices are solved
+/// as they are.
+///
+/// Returns the certified lower bound `s ≤ σ_min(A)` (for a square matrix, one of the two bounds above). Allocates
+/// nothing; `out` is written only on success.
 pub fn solve_full_column_rank<const N: usize, R, S, SR>(
     a: &Matrix<f64, R, Const<N>, S>,
     r: &Vector<f64, R, SR>,
@@ -93,8 +104,17 @@ where
     }
     let mut rhs = [0.0; L];
     rhs.iter_mut().zip(r.iter()).for_each(|(to, r)| *to = *r);
+    // A square matrix (m = N) is solved as D A x = D r, its rows equilibrated by powers of two: the same x = A⁻¹ r,
+    // scaled exactly, but the certificate and the solve see the condition of D A (variant B's moment task: κ(A) ≈ 5·10³,
+    // κ(DA) ≈ 12). ‖D‖₂ = max d_i turns the bound on σ_min(DA) into one on σ_min(A).
+    let (row_scales, square_norm) = if rows == N {
+        let (scales, norm) = equilibrate_rows(&mut padded, &mut rhs);
+        (scales, Some(norm))
+    } else {
+        ([1.0; N], None)
+    };
     let dot = |x: &[f64; L], y: &[f64; L]| x.iter().zip(y.iter()).map(|(x, y)| x * y).sum::<f64>();
-    // G = AᵀA (lower triangle, row i holds G_ij for j ≤ i), its trace ‖A‖_F², and Aᵀ r.
+    // G = AᵀA (lower triangle, row i holds G_ij for j ≤ i), its trace ‖A‖_F², and Aᵀ r (of D A and D r when scaled).
     let mut g = [[0.0; N]; N];
     let mut frobenius_sq = 0.0;
     for i in 0..N {
@@ -112,9 +132,26 @@ where
     if !(lower_sq >= conditioned && lower_sq > 0.0) {
         return None;
     }
-    // Finite and positive here, as is the threshold.
-    let lower = lower_sq.sqrt();
-    if lower <= 2.0 * policy.threshold(frobenius_sq.sqrt().max(reference_scale)) {
+    // Finite and positive here, as is the threshold: σ_min(A) ≥ σ_min(DA)/max d_i.
+    let largest_row_scale = row_scales.iter().fold(1.0, |m: f64, &d| m.max(d));
+    let mut lower = lower_sq.sqrt() / largest_row_scale;
+    let frobenius_a = square_norm.unwrap_or_else(|| frobenius_sq.sqrt());
+    let threshold = 2.0 * policy.threshold(frobenius_a.max(reference_scale));
+    if lower <= threshold && square_norm.is_some() {
+        // The bound through ‖D‖₂ is loose when one short row carries σ_min(A): bound ‖A⁻¹‖_F itself,
+        // A⁻¹ e_i = d_i G⁻¹ (DA)ᵀ e_i. The computed columns of G⁻¹ carry at most ‖G⁻¹‖ ‖δG‖ ≤ rounding/s² of
+        // relative error (first order); four times that is taken off.
+        let inverse_sq: f64 = row_scales
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let column = inverse.solve(&std::array::from_fn(|j| padded[j][i]));
+                d * d * column.iter().map(|c| c * c).sum::<f64>()
+            })
+            .sum();
+        lower = (1.0 - 4.0 * rounding / lower_sq) / inverse_sq.sqrt();
+    }
+    if lower.is_nan() || lower <= threshold {
         return None;
     }
     // x₀ = L⁻ᵀ (L⁻¹ b), then x = x₀ + L⁻ᵀ L⁻¹ Aᵀ (r − A x₀), the residual formed from A.
@@ -135,6 +172,45 @@ where
     }
     out.iter_mut().zip(x.iter()).for_each(|(out, x)| *out = *x);
     Some(lower)
+}
+
+/// Scales each row of the square, column-major `padded` (and its entry of `rhs`) by the power of two
+/// `d_i = 2^{−⌊log₂ ‖a_i‖⌋`, which brings its norm into `[1, 2)` without rounding; rows whose norm is zero, subnormal
+/// or not finite, or whose scale would not be a normal number, keep `d_i = 1`. Returns the scales `d_i` and `‖A‖_F`
+/// (before the scaling).
+fn equilibrate_rows<const L: usize, const N: usize>(
+    padded: &mut [[f64; L]; N],
+    rhs: &mut [f64; L],
+) -> ([f64; N], f64) {
+    let mut scales = [1.0; N];
+    let mut frobenius_sq = 0.0;
+    for ((i, rhs), d) in rhs.iter_mut().enumerate().zip(scales.iter_mut()) {
+        let norm_sq = padded
+            .iter()
+            .map(|column| column[i] * column[i])
+            .sum::<f64>();
+        frobenius_sq += norm_sq;
+        let Some(scale) = power_of_two_reciprocal(norm_sq.sqrt()) else {
+            continue;
+        };
+        padded.iter_mut().for_each(|column| column[i] *= scale);
+        *rhs *= scale;
+        *d = scale;
+    }
+    (scales, frobenius_sq.sqrt())
+}
+
+/// `2^{−e}` with `e = ⌊log₂ x⌋`, for a positive normal `x` whose result is normal too; `None` otherwise.
+fn power_of_two_reciprocal(x: f64) -> Option<f64> {
+    if !(x.is_normal() && x > 0.0) {
+        return None;
+    }
+    // The biased exponent of x is e + 1023; 2^{−e} has the biased exponent 1023 − e = 2046 − biased.
+    let biased = (x.to_bits() >> 52) & 0x7ff;
+    let scaled = 2046u64
+        .checked_sub(biased)
+        .filter(|&b| (1..=2046).contains(&b))?;
+    Some(f64::from_bits(scaled << 52))
 }
 
 /// The inverse of the Cholesky factor `L = L₁ D^{1/2}` of a symmetric positive definite `G = L₁ D L₁ᵀ`, kept as its
