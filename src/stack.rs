@@ -45,8 +45,8 @@
 //! ```
 
 use crate::linalg::{
-    mul_rows_and_vector_to, solve_full_column_rank, solve_small_stack_level, ColumnSvd,
-    LinalgError, RankPolicy, VelocityInverse, FAST_PATH_CONDITION_BOUND,
+    mul_rows_and_vector_to, rank_test_threshold, solve_full_column_rank, solve_small_stack_level,
+    ColumnSvd, LinalgError, RankPolicy, VelocityInverse, FAST_PATH_CONDITION_BOUND,
 };
 use crate::math::{JointMatrix, JointVector};
 use crate::task::{TaskJacobian, TaskValue};
@@ -381,7 +381,7 @@ pub fn solve_stack<'w, const N: usize>(
                     && rank == N
                     && smallest.is_some_and(|s| {
                         if rows == N {
-                            s > 2.0 * policy.threshold(scale)
+                            s > rank_test_threshold::<N>(policy, scale, scale)
                         } else {
                             s * FAST_PATH_CONDITION_BOUND >= scale
                         }

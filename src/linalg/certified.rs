@@ -30,8 +30,9 @@ pub const FAST_PATH_CONDITION_BOUND: f64 = 1e3;
 /// ```
 ///
 /// The fast path answers only when `s ≥ ‖A‖_F / FAST_PATH_CONDITION_BOUND` (so `σ_max/σ_min ≤ 1000`) **and**
-/// `s > 2 · policy.threshold(max(‖A‖_F, reference_scale))` (with `‖A‖_F ≥ σ_max`, a threshold at least the SVD's, and
-/// a factor 2 over the rounding of the SVD's own singular values and of `‖L⁻¹‖_F`): then
+/// `s > (1 + 10⁻⁹) · policy.threshold(max(‖A‖_F, reference_scale)) + 10³ N ε ‖A‖_F` (with `‖A‖_F ≥ σ_max`, a
+/// threshold at least the SVD's; the relative term covers the rounding of `‖L⁻¹‖_F`, the absolute one that of the
+/// SVD's own singular values, `|σ̂_i − σ_i| ≤ c ε ‖A‖` for its backward-stable sweeps, with `c` far below `10³ N`): then
 /// every singular value is kept by the rank policy, as the SVD would decide, so the truncated pseudo-inverse is the
 /// plain least-squares solution and the row-space projector `A⁺A` is the identity. A failed pivot, a non-finite entry
 /// or a bound missed by any margin gives `None`: the fast path never decides a rank, it only confirms a full one.
@@ -136,7 +137,7 @@ where
     let largest_row_scale = row_scales.iter().fold(1.0, |m: f64, &d| m.max(d));
     let mut lower = lower_sq.sqrt() / largest_row_scale;
     let frobenius_a = square_norm.unwrap_or_else(|| frobenius_sq.sqrt());
-    let threshold = 2.0 * policy.threshold(frobenius_a.max(reference_scale));
+    let threshold = rank_test_threshold::<N>(policy, frobenius_a, reference_scale);
     if lower <= threshold && square_norm.is_some() {
         // The bound through ‖D‖₂ is loose when one short row carries σ_min(A): bound ‖A⁻¹‖_F itself,
         // A⁻¹ e_i = d_i G⁻¹ (DA)ᵀ e_i. The computed columns of G⁻¹ carry at most ‖G⁻¹‖ ‖δG‖ ≤ rounding/s² of
@@ -172,6 +173,18 @@ where
     }
     out.iter_mut().zip(x.iter()).for_each(|(out, x)| *out = *x);
     Some(lower)
+}
+
+/// What a certified lower bound on `σ_min(A)` must exceed for the SVD to keep every singular value of `A`: its
+/// threshold, at least, with the margins of [`solve_full_column_rank`] (`(1 + 10⁻⁹)` relative, `10³ N ε ‖A‖_F`
+/// absolute).
+pub(crate) fn rank_test_threshold<const N: usize>(
+    policy: &RankPolicy,
+    frobenius: f64,
+    reference_scale: f64,
+) -> f64 {
+    (1.0 + 1e-9) * policy.threshold(frobenius.max(reference_scale))
+        + 1e3 * N as f64 * f64::EPSILON * frobenius
 }
 
 /// Scales each row of the square, column-major `padded` (and its entry of `rhs`) by the power of two

@@ -42,6 +42,7 @@ mod svd;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use certified::rank_test_threshold;
 pub use certified::{
     solve_full_column_rank, solve_small_full_row_rank, solve_small_stack_level,
     FAST_PATH_CONDITION_BOUND, SMALL_PATH_CONDITION_BOUND,

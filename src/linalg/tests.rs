@@ -425,7 +425,7 @@ fn square_fast_path_equilibrates_a_short_row() {
     let (reference, _) = svd_solution(&a, &r, &RankPolicy::default(), 0.0);
     assert!((fast - reference).norm() <= 1e-12 * r.norm() / sigma_min);
     // A threshold of σ_min(A)/3 keeps every singular value, but the bound through max d_i alone (about 10 times
-    // below σ_min here) would miss twice it: the bound on ‖A⁻¹‖_F answers, and stays below σ_min.
+    // below σ_min here) would miss it: the bound on ‖A⁻¹‖_F answers, and stays below σ_min.
     let close = RankPolicy::new(sigma_min / (3.0 * a.norm()), 0.0).unwrap();
     assert_eq!(svd_solution(&a, &r, &close, 0.0).1, 6);
     let lower = solve_full_column_rank(&a, &r, &close, 0.0, &mut fast)
@@ -435,9 +435,14 @@ fn square_fast_path_equilibrates_a_short_row() {
     let coarse = RankPolicy::new(2.0 * sigma_min / a.norm(), 0.0).unwrap();
     assert!(svd_solution(&a, &r, &coarse, 0.0).1 < 6);
     assert!(solve_full_column_rank(&a, &r, &coarse, 0.0, &mut fast).is_none());
-    // Between the two: a threshold of σ_min(A)/1.9 keeps every value, but not with the factor 2 of margin.
-    let narrow = RankPolicy::new(sigma_min / (1.9 * a.norm()), 0.0).unwrap();
-    assert!(solve_full_column_rank(&a, &r, &narrow, 0.0, &mut fast).is_none());
+    // At the edge: a certificate threshold (relative to ‖A‖_F ≥ σ_max, at least the SVD's) 10⁻⁴ below σ_min(A), and
+    // the bound on ‖A⁻¹‖_F (within 10⁻⁶ of σ_min here, a short row carrying it) confirms full rank, as the SVD
+    // decides; 10⁻⁴ above σ_min, no bound below σ_min can pass it, and the fast path defers.
+    let below = RankPolicy::new(sigma_min * (1.0 - 1e-4) / a.norm(), 0.0).unwrap();
+    assert_eq!(svd_solution(&a, &r, &below, 0.0).1, 6);
+    assert!(solve_full_column_rank(&a, &r, &below, 0.0, &mut fast).is_some());
+    let above = RankPolicy::new(sigma_min * (1.0 + 1e-4) / a.norm(), 0.0).unwrap();
+    assert!(solve_full_column_rank(&a, &r, &above, 0.0, &mut fast).is_none());
 }
 
 /// The rank decision of the fast path: it never certifies full rank where the SVD's rank policy would truncate,
