@@ -149,8 +149,8 @@ pub struct LevelDiagnostics {
     pub rank: usize,
     /// The smallest singular value of `J̃_i` kept by the rank policy (`None` at rank 0); for a [`Self::certified`]
     /// level of full column rank, the certificate's lower bound on it, `1/‖L⁻¹‖_F` less rounding, within a factor `√N`
-    /// of the exact value (for a square level, that bound for the equilibrated rows divided by their largest scale: a
-    /// looser lower bound); for a certified level of one or two rows, the value from the closed-form eigenvalue of
+    /// of the exact value (for a square level, a bound for its equilibrated rows mapped back to `J̃_i`, which may be
+    /// looser); for a certified level of one or two rows, the value from the closed-form eigenvalue of
     /// `J̃_i J̃_iᵀ` ([D15](crate::theory#d15)).
     pub smallest_kept_singular_value: Option<f64>,
     /// `true` when the level was solved without an SVD on a certified path ([D15](crate::theory#d15)): full column
