@@ -142,12 +142,11 @@ impl<const N: usize> VisibilityCost<N> {
         if let Some((joint, value)) = first_non_finite(q) {
             return Err(CostError::NonFiniteConfiguration { joint, value });
         }
-        let mut workspace = KinematicsWorkspace::new(); // fixed-size, on the stack
-        let state = self.chain.kinematics(&mut workspace, q)?;
-        let camera_from_base = self
-            .camera
-            .base_from_camera(state.base_from_tip())
-            .inverse();
+        // The pose alone (the workspace is fixed-size, on the stack); the Jacobians only when the gradient is asked
+        // for and not zero (a target inside the dead band and facing the camera, most of the time).
+        let mut workspace = KinematicsWorkspace::new();
+        let base_from_tip = self.chain.tip_pose(&mut workspace, q)?;
+        let camera_from_base = self.camera.base_from_camera(&base_from_tip).inverse();
         let [(x_low, x_high), (y_low, y_high)] = self.thresholds;
         let [x_span, y_span] = self.spans;
         let mut value = 0.0;
@@ -193,8 +192,13 @@ impl<const N: usize> VisibilityCost<N> {
             }
         }
         if let Some(g) = gradient.as_deref_mut() {
-            let camera_jacobian = self.camera.camera_jacobian(state.tip_jacobian());
-            *g = (twist_gradient * camera_jacobian).transpose();
+            *g = if twist_gradient == InteractionRow::zeros() {
+                JointVector::zeros()
+            } else {
+                let state = self.chain.jacobians_after_tip_pose(&mut workspace);
+                let camera_jacobian = self.camera.camera_jacobian(state.tip_jacobian());
+                (twist_gradient * camera_jacobian).transpose()
+            };
         }
         checked_cost(Cost::<N>::name(self), value, gradient.as_deref())
     }

@@ -62,6 +62,38 @@ impl<const N: usize> SerialChain<N> {
         workspace: &'w mut KinematicsWorkspace<N>,
         q: &JointVector<N>,
     ) -> Result<&'w KinematicState<N>, RobotError> {
+        self.poses(&mut workspace.state, q)?;
+        self.jacobians(&mut workspace.state);
+        Ok(&workspace.state)
+    }
+
+    /// Forward kinematics alone: `base_from_tip` (ViSP `fMe`) at joint positions `q`, without the Jacobians, for
+    /// callers that need the pose only (a cost's value, most of the time). The same operations in the same order as
+    /// [`SerialChain::kinematics`], so the same bits. Allocates nothing.
+    ///
+    /// # Errors
+    /// As [`SerialChain::kinematics`].
+    pub fn tip_pose(
+        &self,
+        workspace: &mut KinematicsWorkspace<N>,
+        q: &JointVector<N>,
+    ) -> Result<Isometry3<f64>, RobotError> {
+        self.poses(&mut workspace.state, q)?;
+        Ok(workspace.state.base_from_tip)
+    }
+
+    /// The Jacobians at the configuration of the last [`SerialChain::tip_pose`] call on `workspace`, completing its
+    /// state to what [`SerialChain::kinematics`] would have written there.
+    pub(crate) fn jacobians_after_tip_pose<'w>(
+        &self,
+        workspace: &'w mut KinematicsWorkspace<N>,
+    ) -> &'w KinematicState<N> {
+        self.jacobians(&mut workspace.state);
+        &workspace.state
+    }
+
+    /// The validated `q` and every frame of `state`: the segments' poses and axes, and `base_from_tip`.
+    fn poses(&self, state: &mut KinematicState<N>, q: &JointVector<N>) -> Result<(), RobotError> {
         if let Some((index, &value)) = q.iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(RobotError::NonFiniteJoint { index, value });
         }
@@ -78,7 +110,6 @@ impl<const N: usize> SerialChain<N> {
                 expected: KINEMATIC_COORDINATE.text,
             });
         }
-        let state = &mut workspace.state;
         state.q = *q;
 
         // Poses: base_from_segment_i = base_from_segment_{i−1} · origin_i · motion_i(q_i). The half-angle sines and
@@ -114,7 +145,12 @@ impl<const N: usize> SerialChain<N> {
             );
         }
         state.base_from_tip = base_from_segment * self.segment_from_tip;
+        Ok(())
+    }
 
+    /// Both Jacobians of `state` from its frames (written by [`SerialChain::poses`] at `state.q`).
+    fn jacobians(&self, state: &mut KinematicState<N>) {
+        let q = &state.q;
         // Jacobians: columns (a_i × (p − o_i), a_i) or (a_i, 0) in base axes, then rotated into tip axes.
         let tip = state.base_from_tip.translation.vector;
         let tip_from_base = state.base_from_tip.rotation.inverse().to_rotation_matrix();
@@ -165,7 +201,6 @@ impl<const N: usize> SerialChain<N> {
                 },
             );
         }
-        Ok(&workspace.state)
     }
 }
 

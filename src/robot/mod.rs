@@ -579,6 +579,30 @@ impl<const N: usize> SerialChain<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The pose-only pass and the completion of its Jacobians write what the full evaluation writes, bit for
+        /// bit, from a workspace last used at another configuration: on the Afma6 and on the coupled Afma6, whose
+        /// mimic joint adds its column to its leader's.
+        #[test]
+        fn tip_pose_then_its_jacobians_equal_the_full_kinematics(
+            u in proptest::collection::vec(-1.0..1.0f64, 6),
+        ) {
+            for chain in [builtin::afma6().unwrap().chain, builtin::afma6_coupled().unwrap().chain] {
+                let (lower, upper) = (chain.lower_limits(), chain.upper_limits());
+                let q = JointVector::<6>::from_fn(|i, _| {
+                    0.5 * (lower[i] + upper[i]) + 0.5 * (upper[i] - lower[i]) * u[i]
+                });
+                let mut full = KinematicsWorkspace::new();
+                let expected = chain.kinematics(&mut full, &q).unwrap().clone();
+                let mut split = KinematicsWorkspace::new();
+                chain.kinematics(&mut split, &JointVector::zeros()).unwrap();
+                prop_assert_eq!(chain.tip_pose(&mut split, &q).unwrap(), *expected.base_from_tip());
+                prop_assert_eq!(chain.jacobians_after_tip_pose(&mut split), &expected);
+            }
+        }
+    }
 
     #[test]
     fn with_limits_replaces_the_limits_and_nothing_else() {

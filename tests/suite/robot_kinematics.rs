@@ -471,6 +471,14 @@ fn non_finite_joint_positions_are_rejected() {
             value: f64::INFINITY
         }
     );
+    // The pose-only pass checks its input the same way.
+    assert_eq!(
+        chain.tip_pose(&mut ws, &q).unwrap_err(),
+        RobotError::NonFiniteJoint {
+            index: 4,
+            value: f64::INFINITY
+        }
+    );
 }
 
 #[test]
