@@ -9,11 +9,11 @@
 //!   `Scenario::run_experiment_with` and a `SummaryOnly` log (as the study runs it), ns per simulated iteration, beside the controller step of
 //!   the `control_loop` bench (`step/paper_four_tasks_controller`: observation, the four paper tasks, controller with
 //!   avoidance, prediction and criteria, Euler step; no log, no saturation) on the peer scene, ns per step, and the
-//!   overheads `sim / step − 1`; then the same against the full method's step as the simulation runs it
+//!   overheads `sim / step − 1`; then the same against the step with the full method's costs
 //!   (`step/paper_full_method`: the visibility of the target in the avoidance cost and as the removal guard, as
-//!   `sim::simulate_with` does), the like-for-like figure: what the simulation adds beyond the controller step it
-//!   wraps. The runs visit different configurations (the scenario's episode against the peer episode), so the
-//!   overheads are indicative; the best of [`REPEATS`] runs of each.
+//!   `sim::simulate_with` does). The runs do different work (the scenario's episode, with its pushes and removals,
+//!   its reserve task and its joint locks, against the steady peer episode), so the overheads are indicative; the
+//!   README counts the simulation's own work in instructions instead. The best of [`REPEATS`] runs of each.
 //!
 //! Run with `cargo bench --bench throughput` (both) or `cargo bench --bench throughput -- study` (one). Under
 //! `cargo test --benches` (no `--bench` argument) it runs one draw per family and one repeat: a smoke test.

@@ -251,9 +251,9 @@ impl ServoLoop {
         Self::controlled(tasks)
     }
 
-    /// [`Self::paper`] as the simulation runs the full method: the visibility of the target (the simulation's default
-    /// 20 px margin and facing term, D27) joins the avoidance cost and guards removals, evaluated at `q` and at the
-    /// predicted `q̂`.
+    /// [`Self::paper`] with the costs of the simulation's full method: the visibility of the target (the simulation's
+    /// default 20 px margin and facing term, D27) joins the avoidance cost and guards removals, evaluated at `q` and at
+    /// the predicted `q̂`. Unlike the simulation, no reserve task (D23) and no joint locks (D26).
     pub fn paper_full_method() -> Self {
         let mut servo = Self::paper();
         let defaults = SimulationParameters::default();
