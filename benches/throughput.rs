@@ -12,8 +12,9 @@
 //!   overheads `sim / step − 1`; then the same against the step with the full method's costs
 //!   (`step/paper_full_method`: the visibility of the target in the avoidance cost and as the removal guard, as
 //!   `sim::simulate_with` does). The runs do different work (the scenario's episode, with its pushes and removals,
-//!   its reserve task and its joint locks, against the steady peer episode), so the overheads are indicative; the
-//!   README counts the simulation's own work in instructions instead. The best of [`REPEATS`] runs of each.
+//!   its reserve task and its joint locks, against the steady peer episode), so these ratios are indicative. The
+//!   overhead on the same work comes from `scripts/sim_overhead.sh`, which samples this bench with `perf` and splits
+//!   the simulation's own time from that of the control step inside it. The best of [`REPEATS`] runs of each.
 //!
 //! Run with `cargo bench --bench throughput` (both) or `cargo bench --bench throughput -- study` (one). Under
 //! `cargo test --benches` (no `--bench` argument) it runs one draw per family and one repeat: a smoke test.
