@@ -78,6 +78,15 @@
 //! (`e_rᵀ J_r u > r_escape ‖e_r‖²`, D24); or, in step 4, when the settled stack has achieved its tasks with the reserve
 //! task's error still above `ε_escape` (D23).
 //!
+//! When the whole sequence is stacked, nothing is out, no escape is due and the robot has come to rest (`‖q̇_n‖ <
+//! ε_add`, the paper's threshold) with a joint **locked** at a limit and the goal not reached (the reserve task's error
+//! above `ε_escape`; without a reserve, a stacked task's above `ε_achieved`), the run sits at a false equilibrium
+//! against the limit that sliding cannot leave. The controller **restarts** the sequence, once (D29,
+//! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
+//! [`EventKind::Restart`] per task), the joints that were locked are driven towards the middle of their range in the
+//! first task's null space, and the next task is pushed as before once they are near it (or after
+//! [`ControllerParameters::restart_timeout`]); the reserve task may escape again.
+//!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
 //! `u`, any task removable, re-insertion at the removal threshold with no dwell, no fallback) for comparison; its
 //! measured outcome is in the README (convergence-domain study).
@@ -313,6 +322,19 @@ pub struct ControllerParameters {
     /// the lock off. Default `10⁻⁵` (a joint reaches the band only after the braking has slowed it down); valid in
     /// `[0, 0.5)`.
     pub lock_band: f64,
+    /// `k_restart` (s⁻¹), the restart of D29: at rest against a limit short of the goal, with every task stacked, the
+    /// sequence restarts from its first task, once, and the joints that were locked are driven towards the middle of
+    /// their range at this rate, `q̇_i = −k_restart (q_i − q̄_i)` before the projection into the first task's null
+    /// space (the law's secondary term becomes the gradient of `h + ½ (k_restart/κ) Σ (q_i − q̄_i)²`). Needs the
+    /// limits ([`StackController::with_joint_limits`]) and `κ > 0`; full method only (robust rule, removals
+    /// allowed). Default 1 s⁻¹; `0` switches the restart off. Measured: theory D29.
+    pub restart_rate: f64,
+    /// `b_restart`: the recentring ends, and the sequence goes on, once every recentred joint is within
+    /// `b_restart Δq_i` of the middle of its range (D29; a fraction of the range, default 0.05, in `(0, 0.5]`).
+    pub restart_centre_band: f64,
+    /// `T_restart` (s): the recentring ends after this long even if a joint has not reached the middle of its range
+    /// (D29; default 5 s, the stall timeout's).
+    pub restart_timeout: f64,
 }
 
 impl Default for ControllerParameters {
@@ -340,6 +362,9 @@ impl Default for ControllerParameters {
             hold_before_limit: false,
             braking_rate: 5.0,
             lock_band: 1e-5,
+            restart_rate: 1.0,
+            restart_centre_band: 0.05,
+            restart_timeout: 5.0,
         }
     }
 }
@@ -479,6 +504,27 @@ impl ControllerParameters {
             (0.0..0.5).contains(&v),
             "in [0, 0.5) (0: no lock)",
         )?;
+        let v = self.restart_rate;
+        check(
+            "restart_rate",
+            v,
+            in_range(v, 0.0, 1e4),
+            "in [0, 1e4] s⁻¹ (0: no restart)",
+        )?;
+        let v = self.restart_centre_band;
+        check(
+            "restart_centre_band",
+            v,
+            v > 0.0 && in_range(v, 0.0, 0.5),
+            "in (0, 0.5]",
+        )?;
+        let v = self.restart_timeout;
+        check(
+            "restart_timeout",
+            v,
+            v > 0.0 && DURATION_S.contains(v),
+            "> 0 and within [0, 86400] s",
+        )?;
         Ok(())
     }
 
@@ -542,10 +588,13 @@ pub enum EventKind {
     /// Every task was dropped rather than let the law cross a hard limit
     /// ([`ControllerParameters::hold_before_limit`], D13); the event's task is the highest-priority one dropped.
     Hold,
+    /// The sequence was restarted from its first task, at rest against a limit short of the goal (D29); one event per
+    /// task taken out, all at the same iteration.
+    Restart,
 }
 
 impl EventKind {
-    /// The verb used in logs and figures: `push`, `remove`, `reinsert`, `fallback`, `escape`, `hold`.
+    /// The verb used in logs and figures: `push`, `remove`, `reinsert`, `fallback`, `escape`, `hold`, `restart`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Push => "push",
@@ -554,6 +603,7 @@ impl EventKind {
             Self::Escape => "escape",
             Self::Fallback => "fallback",
             Self::Hold => "hold",
+            Self::Restart => "restart",
         }
     }
 }
@@ -703,6 +753,12 @@ pub struct StackController<const N: usize> {
     fallback: bool,
     /// The hold (highest-priority task dropped, time), once every task was dropped before a hard limit.
     held: Option<(usize, f64)>,
+    /// The joint limits given to [`Self::with_joint_limits`]: the lock of D26, the restart of D29.
+    limits: Option<JointLimits<N>>,
+    /// D29: whether the sequence has been restarted (once per run).
+    restarted: bool,
+    /// D29: while the restart recentres joints, which ones and since when.
+    recentring: Option<([bool; N], f64)>,
     change_pending: bool,
     last_change_time: f64,
     /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
@@ -797,6 +853,9 @@ impl<const N: usize> StackController<N> {
             last_reinsertion_test: None,
             fallback: false,
             held: None,
+            limits: None,
+            restarted: false,
+            recentring: None,
             change_pending: false,
             last_change_time: 0.0,
             early_push_reference: None,
@@ -845,8 +904,9 @@ impl<const N: usize> StackController<N> {
     pub fn with_joint_limits(mut self, limits: JointLimits<N>) -> Result<Self, ControllerError> {
         let band = self.parameters.lock_band;
         if band > 0.0 {
-            self.law_workspace.lock_at_limits(limits, band)?;
+            self.law_workspace.lock_at_limits(limits.clone(), band)?;
         }
+        self.limits = Some(limits);
         Ok(self)
     }
 
@@ -1026,12 +1086,15 @@ impl<const N: usize> StackController<N> {
         } else {
             StackChange::Unchanged
         };
+        let recentring = self.recentring_cost(law, cost);
         let output = control_step(
             law,
             &mut self.law_workspace,
             tasks,
             &self.stacked,
-            cost,
+            recentring
+                .as_ref()
+                .map_or(cost, |c| Some(c as &dyn Cost<N>)),
             q,
             time,
             change,
@@ -1045,6 +1108,7 @@ impl<const N: usize> StackController<N> {
             self.note_law_jump(iteration, &output, &velocity_sent_before);
         }
         let mut result = self.summarize(&output);
+        let was_recentring = self.recentring.is_some();
         let event = match self.decide(
             law,
             tasks,
@@ -1064,16 +1128,24 @@ impl<const N: usize> StackController<N> {
                 return Err(error);
             }
         };
+        if event.is_none() && was_recentring && self.recentring.is_none() {
+            // D29: the recentring term leaves the law at the next step, which starts a transition from the velocity
+            // sent now (D1), as a stack change does.
+            self.change_pending = true;
+        }
         if let Some(kind) = event {
             // theory §6.5: the change takes effect now; the law is solved again on the new stack and blended from the
             // velocity actually sent before, so q̇(τ⁺) = q̇(τ⁻) (D1). The transition starts here, once.
             self.law_workspace.restore(memory);
+            let recentring = self.recentring_cost(law, cost);
             let output = match control_step(
                 law,
                 &mut self.law_workspace,
                 tasks,
                 &self.stacked,
-                cost,
+                recentring
+                    .as_ref()
+                    .map_or(cost, |c| Some(c as &dyn Cost<N>)),
                 q,
                 time,
                 StackChange::Changed,
@@ -1211,6 +1283,96 @@ impl<const N: usize> StackController<N> {
         Some(EventKind::Escape)
     }
 
+    /// D29: at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with the whole sequence stacked, nothing out and no
+    /// escape due, a joint locked at a limit and the goal not reached (the reserve task's error above `ε_escape`;
+    /// without a reserve, a stacked task's above `ε_achieved`): every task but the first is taken out in one change,
+    /// once per run, and the locked joints are recentred ([`Self::recentring_cost`]) before the sequence goes on.
+    fn restart(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: Option<&dyn Cost<N>>,
+        result: &ControllerStep<N>,
+        iteration: usize,
+        time: f64,
+    ) -> Option<EventKind> {
+        let parameters = &self.parameters;
+        if parameters.restart_rate <= 0.0
+            || self.restarted
+            || !parameters.allow_removal
+            || parameters.rule != DecisionRule::Robust
+            || self.limits.is_none()
+            || cost.is_none()
+            || law.avoidance_gain() <= 0.0
+            || result.stack_velocity_norm >= parameters.settle_velocity
+        {
+            return None;
+        }
+        let goal_missed = match self.reserve {
+            Some(reserve) => tasks[reserve].error().norm() > parameters.escape_error,
+            None => self
+                .stacked
+                .iter()
+                .any(|&t| tasks[t].error().norm() > parameters.escape_achieved_error),
+        };
+        let locked = *self.law_workspace.locked_joints();
+        if !goal_missed || !locked.contains(&true) {
+            return None;
+        }
+        let first = *self.stacked.first()?;
+        self.restarted = true;
+        self.recentring = Some((locked, time));
+        self.escaped = false;
+        self.next_push = first + 1;
+        // One change: every task taken out is logged at this iteration, in priority order.
+        let stacked = std::mem::take(&mut self.stacked);
+        for &task in &stacked[1..] {
+            self.record(StackEvent {
+                iteration,
+                time,
+                kind: EventKind::Restart,
+                task,
+                law_jump: 0.0,
+                removal: None,
+                reinsertion: None,
+            });
+        }
+        self.stacked = stacked;
+        self.stacked.truncate(1);
+        Some(EventKind::Restart)
+    }
+
+    /// D29: every recentred joint within `b_restart Δq_i` of the middle of its range.
+    fn recentred(&self, joints: &[bool; N], q: &JointVector<N>) -> bool {
+        let Some(limits) = &self.limits else {
+            return true;
+        };
+        let band = self.parameters.restart_centre_band;
+        (0..N).all(|i| {
+            let (lower, upper) = (limits.lower()[i], limits.upper()[i]);
+            !joints[i] || (q[i] - 0.5 * (lower + upper)).abs() <= band * (upper - lower)
+        })
+    }
+
+    /// D29: while a restart recentres joints, the cost whose gradient the law descends.
+    fn recentring_cost<'a>(
+        &self,
+        law: &ControlLaw,
+        cost: Option<&'a dyn Cost<N>>,
+    ) -> Option<RecentringCost<'a, N>> {
+        let ((joints, _), limits, avoidance) = (self.recentring?, self.limits.as_ref()?, cost?);
+        let kappa = law.avoidance_gain();
+        if kappa <= 0.0 {
+            return None;
+        }
+        let weight = self.parameters.restart_rate / kappa;
+        Some(RecentringCost {
+            avoidance,
+            centre: (limits.lower() + limits.upper()) * 0.5,
+            weights: JointVector::from_fn(|i, _| if joints[i] { weight } else { 0.0 }),
+        })
+    }
+
     fn insert_by_priority(&mut self, task: usize) {
         let at = self.stacked.partition_point(|&t| t < task);
         self.stacked.insert(at, task);
@@ -1266,13 +1428,17 @@ impl<const N: usize> StackController<N> {
             }
             other => other?,
         };
-        // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule).
-        let danger =
-            if output.gradient().norm() > 0.0 || self.parameters.rule == DecisionRule::Paper {
-                *output.gradient()
-            } else {
-                predicted_gradient
-            };
+        // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule). While
+        // a restart recentres joints (D29) the law's gradient carries the recentring term: ∇h is evaluated apart.
+        let mut gradient = *output.gradient();
+        if self.recentring.is_some() {
+            cost.value_and_gradient(q, &mut gradient)?;
+        }
+        let danger = if gradient.norm() > 0.0 || self.parameters.rule == DecisionRule::Paper {
+            gradient
+        } else {
+            predicted_gradient
+        };
         if danger.norm() > 0.0 {
             self.compute_criteria(law, tasks, &danger)?;
         }
@@ -1666,6 +1832,15 @@ impl<const N: usize> StackController<N> {
         time: f64,
         result: &ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
+        // D29: while a restart recentres joints, nothing is pushed or put back.
+        if let Some((joints, since)) = self.recentring {
+            if time - since < self.parameters.restart_timeout
+                && !self.recentred(&joints, prediction.q)
+            {
+                return Ok(None);
+            }
+            self.recentring = None;
+        }
         // With no task out, the next push waits for the full method's threshold when tasks may be removed (robust
         // rule), the paper's otherwise; a removed task is tested for re-insertion at the paper's, once the stack has
         // nearly stopped (D5).
@@ -1686,7 +1861,10 @@ impl<const N: usize> StackController<N> {
                 self.push_next(iteration, time);
                 return Ok(Some(EventKind::Push));
             }
-            return Ok(self.escape(tasks, iteration, time));
+            if let Some(kind) = self.escape(tasks, iteration, time) {
+                return Ok(Some(kind));
+            }
+            return Ok(self.restart(law, tasks, cost, result, iteration, time));
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));
@@ -1959,6 +2137,49 @@ impl<const N: usize> StackController<N> {
             });
         }
         Ok(())
+    }
+}
+
+/// D29: the avoidance cost `h` with the restart's recentring term in its gradient only,
+/// `∇h + W (q − q̄)` with `W = diag(k_restart/κ)` over the recentred joints and `q̄` the middle of each range: the law's
+/// term `−κ P^A_n (∇h + W (q − q̄))` moves each recentred joint towards `q̄` at the rate `k_restart`, within the stack's
+/// null space. Its value is `h` alone: the controller's decisions (removal, re-insertion, prediction) see the
+/// avoidance cost, not the recentring.
+struct RecentringCost<'a, const N: usize> {
+    avoidance: &'a dyn Cost<N>,
+    centre: JointVector<N>,
+    weights: JointVector<N>,
+}
+
+impl<const N: usize> Cost<N> for RecentringCost<'_, N> {
+    fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
+        self.avoidance.value(q)
+    }
+
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<N>,
+        gradient: &mut JointVector<N>,
+    ) -> Result<f64, CostError> {
+        let value = self.avoidance.value_and_gradient(q, gradient)?;
+        *gradient += self.weights.component_mul(&(q - self.centre));
+        Ok(value)
+    }
+
+    fn name(&self) -> &str {
+        self.avoidance.name()
+    }
+
+    fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
+        self.avoidance.dominant_term(q)
+    }
+
+    fn default_removal_threshold(&self) -> Option<f64> {
+        self.avoidance.default_removal_threshold()
+    }
+
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        self.avoidance.forbids(q)
     }
 }
 

@@ -192,10 +192,15 @@ pub struct MethodResult {
     pub outcome: &'static str,
     /// Iterations performed.
     pub iterations: usize,
-    /// Removals over the run.
+    /// Removals over the run (D6: a task taken out because the avoidance was predicted to fail; the tasks a restart
+    /// takes out are counted apart, [`Self::restart_take_outs`]).
     pub removals: usize,
     /// The largest number of removals of one task.
     pub max_removals_of_a_task: usize,
+    /// Tasks taken out by a restart of the sequence ([D29](crate::theory#d29); 0 when it did not restart).
+    pub restart_take_outs: usize,
+    /// The largest number of times one task was taken out: its removals and a restart's taking it out alike.
+    pub max_take_outs_of_a_task: usize,
     /// Whether the controller fell back to the stack with gradient (D13).
     pub fallback: bool,
     /// `max_k ‖q̇_k − q̇_{k−1}‖` (D14).
@@ -280,6 +285,11 @@ pub struct MethodSummary {
     pub max_removals_of_a_task: usize,
     /// Runs that fell back (D13).
     pub fallbacks: usize,
+    /// Runs that restarted their sequence ([D29](crate::theory#d29)).
+    pub restarts: usize,
+    /// The median over runs of the largest number of times one task was taken out, counting its removals and a
+    /// restart's taking it out (D29) alike.
+    pub median_take_outs_of_a_task: f64,
     /// The median over runs of `max_k ‖q̇_k − q̇_{k−1}‖`.
     pub median_max_velocity_step: f64,
     /// Runs that converged with the camera within [`POSE_TOLERANCE_M`] and [`POSE_TOLERANCE_DEG`] of its goal (with a
@@ -654,6 +664,10 @@ impl<'a> Study<'a> {
                         .max()
                         .unwrap_or(0),
                     fallbacks: results.iter().filter(|r| r.fallback).count(),
+                    restarts: results.iter().filter(|r| r.restart_take_outs > 0).count(),
+                    median_take_outs_of_a_task: median(
+                        results.iter().map(|r| r.max_take_outs_of_a_task as f64),
+                    ),
                     median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
                     converged_within_pose_tolerance: results
                         .iter()
@@ -796,6 +810,10 @@ fn method_result<const N: usize>(
     for event in run.events_of(crate::controller::EventKind::Remove) {
         per_task[event.task] += 1;
     }
+    let mut take_outs = per_task.clone();
+    for event in run.events_of(crate::controller::EventKind::Restart) {
+        take_outs[event.task] += 1;
+    }
     let q_end = run.last_record().map_or(experiment.start, |r| r.q);
     let (camera_translation_error, camera_rotation_error_deg) = match experiment
         .scene
@@ -814,6 +832,8 @@ fn method_result<const N: usize>(
         iterations: run.iterations(),
         removals: per_task.iter().sum(),
         max_removals_of_a_task: per_task.iter().copied().max().unwrap_or(0),
+        restart_take_outs: run.events_of(crate::controller::EventKind::Restart).count(),
+        max_take_outs_of_a_task: take_outs.iter().copied().max().unwrap_or(0),
         fallback: run
             .events_of(crate::controller::EventKind::Fallback)
             .next()
@@ -860,8 +880,16 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
-            "removals", "per task", "fallback", "covered", "at limit", "worse", "off goal", "pose"
+            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
+            "removals",
+            "per task",
+            "fallback",
+            "restarts",
+            "covered",
+            "at limit",
+            "worse",
+            "off goal",
+            "pose"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -874,10 +902,14 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
+                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
+                full.map_or("-".into(), |m| format!(
+                    "{} ({})",
+                    m.restarts, m.median_take_outs_of_a_task
+                )),
                 format!(
                     "{}/{}",
                     family.full_method_also_converged, family.any_baseline_converged
@@ -901,6 +933,8 @@ impl std::fmt::Display for StudyResult {
         writeln!(
             f,
             "removals: median per run of the full method; per task: median over runs of the most removals of one task; \
+             restarts: runs of the full method that restarted their sequence (in brackets, per task counting a restart's \
+             taking a task out as a removal); \
              covered: draws where the full method converged among those \
              where a baseline did; at limit: of those, the draws where every baseline that converged came within \
              {} of a joint's range of a hard limit on the way (covered/of them); worse: draws where stack_gradient converged and the full method did not; off goal: \
@@ -930,6 +964,8 @@ mod tests {
             iterations: 100,
             removals: 0,
             max_removals_of_a_task: 0,
+            restart_take_outs: 0,
+            max_take_outs_of_a_task: 0,
             fallback: false,
             max_velocity_step: 0.0,
             camera_translation_error: 0.0,

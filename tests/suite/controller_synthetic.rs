@@ -774,11 +774,29 @@ fn invalid_parameters_and_task_count() {
             "early_push_ratio",
         )
     });
+    let restart = [
+        ("restart_rate", [f64::NAN, -1.0, f64::INFINITY]),
+        ("restart_centre_band", [0.0, 0.6, f64::NAN]),
+        ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
+    ]
+    .into_iter()
+    .flat_map(|(name, values)| {
+        values.map(|value| {
+            let mut parameters = ControllerParameters::default();
+            match name {
+                "restart_rate" => parameters.restart_rate = value,
+                "restart_centre_band" => parameters.restart_centre_band = value,
+                _ => parameters.restart_timeout = value,
+            }
+            (parameters, name)
+        })
+    });
     for (parameters, expected) in cases
         .into_iter()
         .chain(braking)
         .chain(lock)
         .chain(early_push)
+        .chain(restart)
     {
         match StackController::new(parameters, &values) {
             Err(ControllerError::InvalidParameter { name, .. }) => assert_eq!(name, expected),

@@ -2,7 +2,10 @@
 //! never does worse than the stack with projected gradient on the same draw, removes few tasks, and every run that
 //! does not converge says why. Outcomes over draws, not numbers copied from a run.
 
+use servostack::controller::EventKind;
+use servostack::math::JointVector;
 use servostack::scenario::{RunKind, Scenario};
+use servostack::sim::SummaryOnly;
 use servostack::study::{
     standard_families, Family, Perturbation, Study, StudyError, POSE_TOLERANCE_DEG,
     POSE_TOLERANCE_M,
@@ -263,6 +266,70 @@ fn sliding_along_the_limits_converges_from_more_uniform_starts() {
             "draw {draw}: {without} without the lock, {with} with it"
         );
     }
+}
+
+/// D29 restart: from uniform starts on the square marker's Afma6, the sequence often comes to rest with the wrist
+/// locked at its lower limit, short of the goal (a false equilibrium against the limit that sliding cannot leave).
+/// Restarting the sequence there, once, with the locked joint recentred first (the default), converges from more
+/// draws, and loses none that converged without it.
+#[test]
+fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
+    let scenario = scenario("square_marker_afma6");
+    assert!(scenario.controller.restart_rate > 0.0);
+    let mut without_restart = scenario.clone();
+    without_restart.controller.restart_rate = 0.0;
+    let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 24, 3);
+    let (restarting, once) = (outcomes(&scenario), outcomes(&without_restart));
+    let converged = |outcomes: &[&str]| outcomes.iter().filter(|&&o| o == "converged").count();
+    assert!(
+        converged(&restarting) >= converged(&once) + 3,
+        "converged: {restarting:?} restarting, {once:?} without"
+    );
+    for (draw, (without, with)) in once.iter().zip(&restarting).enumerate() {
+        assert!(
+            *without != "converged" || *with == "converged",
+            "draw {draw}: {without} without the restart, {with} with it"
+        );
+    }
+    // One of the draws only the restart brings to the goal, run again: every task but the first is taken out in
+    // one change, which the transition of D1 keeps continuous, and the sequence is complete at the end.
+    let study = Study::new(&scenario, families(&["uniform"]), 24, 3)
+        .unwrap()
+        .with_methods(&[RunKind::StackController]);
+    let draws = study.run().unwrap().families.remove(0).draws;
+    let rescued = draws
+        .iter()
+        .zip(&once)
+        .find(|(d, without)| d.methods[0].outcome == "converged" && **without != "converged")
+        .map(|(d, _)| d)
+        .unwrap();
+    let mut experiment = scenario.experiment::<6>().unwrap();
+    experiment.start = JointVector::<6>::from_column_slice(&rescued.start);
+    let run = scenario
+        .run_experiment_with(&experiment, RunKind::StackController, &mut SummaryOnly)
+        .unwrap();
+    assert_eq!(run.outcome.name(), "converged");
+    let restarts: Vec<_> = run
+        .event_continuity()
+        .into_iter()
+        .filter(|e| e.kind == EventKind::Restart)
+        .collect();
+    let taken_out: Vec<_> = restarts.iter().map(|e| e.task).collect();
+    assert!(
+        taken_out.len() == 3 && taken_out[..2] == [1, 2],
+        "the angle, the area and the fourth task (or the points in its place) taken out: {taken_out:?}"
+    );
+    assert!(restarts
+        .iter()
+        .all(|e| e.iteration == restarts[0].iteration));
+    let restart = restarts.last().unwrap();
+    assert!(
+        restart.jump < 0.1 * restart.law_jump,
+        "velocity step {} at the restart, law jump {}",
+        restart.jump,
+        restart.law_jump
+    );
+    assert_eq!(run.stacked_at_end().len(), 4);
 }
 
 /// D25 braking: on the UR5e, whose elbow is fast for its 0.55 rad range, a third of the full method's uniform runs
