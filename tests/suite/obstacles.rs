@@ -56,14 +56,20 @@ proptest! {
     /// With cylinders too, to the accuracy of parry's GJK normal on a cylinder's curved side: over ~800 random
     /// configurations the relative error was mostly below 3e−3 with one case at 1.75e−2, hence 5e−2. The gradient
     /// formula is the same as for exact shapes (tested above to 1e−5); this guards the cylinder path against sign or
-    /// Jacobian errors, which are off by O(1).
+    /// Jacobian errors, which are off by O(1). GJK's distance to the curved side is also noisy in its last digits:
+    /// at one configuration (joint 2's central difference) it gave 0.17, −1.21 and −4.28 with steps 1e−3, 1e−5 and
+    /// 1e−6 against an analytic −0.86, which 1e−7 reproduces to 1e−4. So the best of three steps is compared: noise
+    /// spoils one step, a wrong gradient every step.
     #[test]
     fn obstacle_gradient_with_cylinders_matches_finite_differences(s in proptest::collection::vec(-1.0..1.0f64, 6)) {
         let cost = fixture::obstacle_cost(0.15);
         let q = perturbed(&s);
         let closest = cost.closest_pair(&q).unwrap().unwrap();
         prop_assume!(closest.distance > 0.005 && closest.distance < 0.15);
-        let error = gradient_error(&cost, &q, 1e-5);
+        let error = [1e-3, 1e-4, 1e-5]
+            .map(|step| gradient_error(&cost, &q, step))
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
         prop_assert!(error < 5e-2, "relative gradient error {error} at q = {q:?}");
     }
 
