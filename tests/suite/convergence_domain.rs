@@ -161,6 +161,22 @@ fn full_method_outcomes(
         .collect()
 }
 
+/// How many of `outcomes` are `outcome`.
+fn count(outcomes: &[&str], outcome: &str) -> usize {
+    outcomes.iter().filter(|&&o| o == outcome).count()
+}
+
+/// Draw by draw (same family, same seed), every draw that converges `without` a mechanism still converges `with` it.
+fn assert_no_draw_lost(without: &[&str], with: &[&str], mechanism: &str) {
+    assert_eq!(without.len(), with.len());
+    for (draw, (a, b)) in without.iter().zip(with).enumerate() {
+        assert!(
+            *a != "converged" || *b == "converged",
+            "draw {draw}: {a} without {mechanism}, {b} with it"
+        );
+    }
+}
+
 /// D23: on the Afma6 with the desired view turned by up to 10°, the paper's features settle off the goal in some
 /// draws; with the image points in reserve (the default) the full method leaves those false equilibria and reaches
 /// the goal, and no draw that converges without the reserve task is lost with it.
@@ -171,7 +187,7 @@ fn the_reserve_task_leads_turned_views_off_their_false_equilibria() {
     without.controller.escape_error = f64::INFINITY;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "view_10deg", 24, 4);
     let (with_escape, without) = (outcomes(&with_escape), outcomes(&without));
-    let off_goal = without.iter().filter(|&&o| o == "off_goal").count();
+    let off_goal = count(&without, "off_goal");
     assert!(
         off_goal > 0,
         "the sample holds no false equilibrium: {without:?}"
@@ -185,12 +201,7 @@ fn the_reserve_task_leads_turned_views_off_their_false_equilibria() {
         2 * rescued > off_goal,
         "{rescued} of {off_goal} rescued: {with_escape:?}"
     );
-    for (draw, (a, b)) in without.iter().zip(&with_escape).enumerate() {
-        assert!(
-            *a != "converged" || *b == "converged",
-            "draw {draw}: {a} without, {b} with"
-        );
-    }
+    assert_no_draw_lost(&without, &with_escape, "the reserve task");
 }
 
 /// D24: from starts anywhere inside the Afma6's limits the paper's fourth task often leads the camera towards a false
@@ -231,7 +242,6 @@ fn holding_keeps_failed_uniform_runs_inside_the_limits() {
     let mut crossing = held.clone();
     crossing.controller.hold_before_limit = false;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);
-    let count = |outcomes: &[&str], which: &str| outcomes.iter().filter(|&&o| o == which).count();
     let (held, crossing) = (outcomes(&held), outcomes(&crossing));
     let (crossed_with, crossed_without) =
         (count(&held, "joint_limit"), count(&crossing, "joint_limit"));
@@ -254,18 +264,12 @@ fn sliding_along_the_limits_converges_from_more_uniform_starts() {
     stopping.controller.lock_band = 0.0;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);
     let (sliding, stopping) = (outcomes(&sliding), outcomes(&stopping));
-    let converged = |outcomes: &[&str]| outcomes.iter().filter(|&&o| o == "converged").count();
     assert!(
-        converged(&sliding) >= converged(&stopping) + 3,
+        count(&sliding, "converged") >= count(&stopping, "converged") + 3,
         "converged: {sliding:?} sliding, {stopping:?} stopping"
     );
     assert!(!sliding.contains(&"joint_limit"), "{sliding:?}");
-    for (draw, (without, with)) in stopping.iter().zip(&sliding).enumerate() {
-        assert!(
-            *without != "converged" || *with == "converged",
-            "draw {draw}: {without} without the lock, {with} with it"
-        );
-    }
+    assert_no_draw_lost(&stopping, &sliding, "the lock");
 }
 
 /// D29 restart: from uniform starts on the square marker's Afma6, the sequence often comes to rest with the wrist
@@ -280,17 +284,11 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     without_restart.controller.restart_rate = 0.0;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 24, 3);
     let (restarting, once) = (outcomes(&scenario), outcomes(&without_restart));
-    let converged = |outcomes: &[&str]| outcomes.iter().filter(|&&o| o == "converged").count();
     assert!(
-        converged(&restarting) >= converged(&once) + 3,
+        count(&restarting, "converged") >= count(&once, "converged") + 3,
         "converged: {restarting:?} restarting, {once:?} without"
     );
-    for (draw, (without, with)) in once.iter().zip(&restarting).enumerate() {
-        assert!(
-            *without != "converged" || *with == "converged",
-            "draw {draw}: {without} without the restart, {with} with it"
-        );
-    }
+    assert_no_draw_lost(&once, &restarting, "the restart");
     // One of the draws only the restart brings to the goal, run again: every task but the first is taken out in
     // one change, which the transition of D1 keeps continuous, and the sequence is complete at the end.
     let study = Study::new(&scenario, families(&["uniform"]), 24, 3)
@@ -343,7 +341,7 @@ fn braking_keeps_every_uniform_run_inside_the_limits() {
     unbraked.controller.braking_rate = f64::INFINITY;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);
     let (braked, unbraked) = (outcomes(&braked), outcomes(&unbraked));
-    let crossed_without = unbraked.iter().filter(|&&o| o == "joint_limit").count();
+    let crossed_without = count(&unbraked, "joint_limit");
     assert!(
         crossed_without >= 3,
         "the sample holds too few crossings to say anything: {unbraked:?}"
@@ -352,12 +350,7 @@ fn braking_keeps_every_uniform_run_inside_the_limits() {
         !braked.contains(&"joint_limit"),
         "past a limit with the braking: {braked:?}"
     );
-    for (draw, (without, with)) in unbraked.iter().zip(&braked).enumerate() {
-        assert!(
-            *without != "converged" || *with == "converged",
-            "draw {draw}: {without} unbraked, {with} braked"
-        );
-    }
+    assert_no_draw_lost(&unbraked, &braked, "the braking");
 }
 
 /// The same seed gives the same draws and outcomes (whatever thread runs a draw); another seed other draws.
@@ -520,7 +513,6 @@ fn keeping_the_target_facing_converges_from_more_uniform_starts() {
     at_the_bound.simulation.facing_margin_deg = 0.0;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);
     let (facing, at_the_bound) = (outcomes(&facing), outcomes(&at_the_bound));
-    let count = |outcomes: &[&str], which: &str| outcomes.iter().filter(|&&o| o == which).count();
     assert!(
         count(&facing, "converged") >= count(&at_the_bound, "converged") + 2,
         "converged: {facing:?} facing, {at_the_bound:?} at the bound"
