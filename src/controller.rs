@@ -461,13 +461,17 @@ impl ControllerParameters {
             DURATION_S.contains(v),
             DURATION_S.text,
         )?;
-        let v = self.stall_timeout;
-        check(
-            "stall_timeout",
-            v,
-            v > 0.0 && DURATION_S.contains(v),
-            "> 0 and within [0, 86400] s",
-        )?;
+        for (name, v) in [
+            ("stall_timeout", self.stall_timeout),
+            ("restart_timeout", self.restart_timeout),
+        ] {
+            check(
+                name,
+                v,
+                v > 0.0 && DURATION_S.contains(v),
+                "> 0 and within [0, 86400] s",
+            )?;
+        }
         let v = f64::from(self.max_removals);
         check("max_removals", v, self.max_removals >= 1, "≥ 1")?;
         for (name, v) in [
@@ -517,13 +521,6 @@ impl ControllerParameters {
             v,
             v > 0.0 && in_range(v, 0.0, 0.5),
             "in (0, 0.5]",
-        )?;
-        let v = self.restart_timeout;
-        check(
-            "restart_timeout",
-            v,
-            v > 0.0 && DURATION_S.contains(v),
-            "> 0 and within [0, 86400] s",
         )?;
         Ok(())
     }

@@ -778,6 +778,7 @@ fn invalid_parameters_and_task_count() {
         ("restart_rate", [f64::NAN, -1.0, f64::INFINITY]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
         ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
+        ("stall_timeout", [0.0, -1.0, f64::NAN]),
     ]
     .into_iter()
     .flat_map(|(name, values)| {
@@ -786,6 +787,7 @@ fn invalid_parameters_and_task_count() {
             match name {
                 "restart_rate" => parameters.restart_rate = value,
                 "restart_centre_band" => parameters.restart_centre_band = value,
+                "stall_timeout" => parameters.stall_timeout = value,
                 _ => parameters.restart_timeout = value,
             }
             (parameters, name)
