@@ -112,20 +112,87 @@ pub const PERIOD_S: PhysicalRange = PhysicalRange {
     text: "finite, within [1e-6, 60] s",
 };
 
-/// Why [`read_text_file`] read nothing.
+/// Focal lengths (px). A pixel-sized focal length is already a fisheye of about 180°; a million pixels is a
+/// telescope on a gigapixel sensor. A value outside is a unit error (metres or millimetres for pixels).
+pub const FOCAL_LENGTH_PX: PhysicalRange = PhysicalRange {
+    low: 1.0,
+    high: 1e6,
+    text: "finite, within [1, 1e6] px",
+};
+
+/// Image sizes (px), width or height: one pixel to a million.
+pub const IMAGE_SIZE_PX: PhysicalRange = PhysicalRange {
+    low: 1.0,
+    high: 1e6,
+    text: "finite, within [1, 1e6] px",
+};
+
+/// Principal-point coordinates (px): within a million pixels of the image's corner either way (a principal point far
+/// outside the image is a shifted-lens or cropped camera, but never beyond the sensor sizes of [`IMAGE_SIZE_PX`]).
+pub const PRINCIPAL_POINT_PX: PhysicalRange = PhysicalRange {
+    low: -1e6,
+    high: 1e6,
+    text: "finite, within ±1e6 px",
+};
+
+/// Pixel noise amplitudes (px): the half-width of a uniform noise or the standard deviation of a Gaussian one. A
+/// thousand pixels is the size of a whole image: past that nothing is measured, and the noise's arithmetic would be
+/// an overflow away (a uniform draw over `±1e308` has an infinite width).
+pub const PIXEL_NOISE_PX: PhysicalRange = PhysicalRange {
+    low: 0.0,
+    high: 1e3,
+    text: "finite, within [0, 1000] px",
+};
+
+/// Brown–Conrady distortion coefficients (dimensionless): real calibrations stay within a few units (strong fisheye
+/// fits reach tens); ten thousand keeps the distortion of any point of an image within [`IMAGE_SIZE_PX`] finite.
+pub const DISTORTION_COEFFICIENT: PhysicalRange = PhysicalRange {
+    low: -1e4,
+    high: 1e4,
+    text: "finite, within ±1e4",
+};
+
+/// Rates (Hz): camera frame rates, control rates. From one frame an hour to a megahertz.
+pub const RATE_HZ: PhysicalRange = PhysicalRange {
+    low: 1.0 / 3600.0,
+    high: 1e6,
+    text: "finite, within [1/3600, 1e6] Hz",
+};
+
+/// The largest iteration budget of a run or draw count of a study: a billion control periods is eleven days of a
+/// 1 kHz loop, far beyond any experiment; a larger count is a typing error that would start a job of years.
+pub const MAX_ITERATIONS: usize = 1_000_000_000;
+
+/// Why [`read_capped`] read nothing.
 pub(crate) enum ReadFailure {
     /// The operating system's error.
     Io(std::io::Error),
-    /// The file's size (bytes), above the limit.
+    /// The file has more than the limit's bytes (the size found: the file's length, or `limit + 1` when its length
+    /// is unknown in advance, as for a pipe or a device).
     TooLarge(u64),
 }
 
-/// Reads a text file of at most `limit` bytes, refusing a larger one before reading it (the parsers' inputs,
-/// [D17](crate::theory#d17)).
-pub(crate) fn read_text_file(path: &std::path::Path, limit: usize) -> Result<String, ReadFailure> {
-    let bytes = std::fs::metadata(path).map_err(ReadFailure::Io)?.len();
-    if bytes > limit as u64 {
-        return Err(ReadFailure::TooLarge(bytes));
+/// Reads a file of at most `limit` bytes through a reader that stops after `limit + 1` bytes, so that neither a
+/// large file nor one whose length is unknown (a pipe, `/dev/zero`) is read whole ([D17](crate::theory#d17)).
+pub(crate) fn read_capped(path: &std::path::Path, limit: usize) -> Result<Vec<u8>, ReadFailure> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(ReadFailure::Io)?;
+    let announced = file.metadata().map_err(ReadFailure::Io)?.len();
+    if announced > limit as u64 {
+        return Err(ReadFailure::TooLarge(announced));
     }
-    std::fs::read_to_string(path).map_err(ReadFailure::Io)
+    let mut bytes = Vec::with_capacity(announced as usize);
+    file.take(limit as u64 + 1)
+        .read_to_end(&mut bytes)
+        .map_err(ReadFailure::Io)?;
+    if bytes.len() > limit {
+        return Err(ReadFailure::TooLarge(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Reads a UTF-8 text file of at most `limit` bytes ([`read_capped`]): the parsers' inputs.
+pub(crate) fn read_text_file(path: &std::path::Path, limit: usize) -> Result<String, ReadFailure> {
+    String::from_utf8(read_capped(path, limit)?)
+        .map_err(|e| ReadFailure::Io(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))
 }

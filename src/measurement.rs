@@ -28,6 +28,7 @@
 //!
 //! [`MeasurementModel::measure`] allocates nothing.
 
+use crate::bounds::{PIXEL_NOISE_PX, RATE_HZ};
 use crate::camera::{
     BrownConrady, CalibratedCamera, CameraError, CameraIntrinsics, EyeInHand, ImagePoint,
 };
@@ -112,9 +113,9 @@ pub enum BetweenFrames {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MeasurementParameters {
-    /// Half-width `a` (px, ≥ 0) of the uniform noise added to each pixel coordinate: `U(−a, a)`.
+    /// Half-width `a` (px, in `[0, 1000]`) of the uniform noise added to each pixel coordinate: `U(−a, a)`.
     pub pixel_noise_uniform_px: f64,
-    /// Standard deviation `σ` (px, ≥ 0) of the Gaussian noise added to each pixel coordinate.
+    /// Standard deviation `σ` (px, in `[0, 1000]`) of the Gaussian noise added to each pixel coordinate.
     pub pixel_noise_sigma_px: f64,
     /// Seed of every random draw of a run (noise and intrinsics error signs).
     pub seed: u64,
@@ -185,26 +186,20 @@ impl MeasurementParameters {
         if !(period.is_finite() && period > 0.0) {
             return invalid("period", period, "finite and > 0 (s)");
         }
-        if !non_negative(self.pixel_noise_uniform_px) {
-            return invalid(
-                "pixel_noise_uniform_px",
-                self.pixel_noise_uniform_px,
-                "finite and ≥ 0 (px)",
-            );
-        }
-        if !non_negative(self.pixel_noise_sigma_px) {
-            return invalid(
-                "pixel_noise_sigma_px",
-                self.pixel_noise_sigma_px,
-                "finite and ≥ 0 (px)",
-            );
+        for (name, value) in [
+            ("pixel_noise_uniform_px", self.pixel_noise_uniform_px),
+            ("pixel_noise_sigma_px", self.pixel_noise_sigma_px),
+        ] {
+            if !PIXEL_NOISE_PX.contains(value) {
+                return invalid(name, value, PIXEL_NOISE_PX.text);
+            }
         }
         if let Some(rate) = self.camera_rate_hz {
-            if !(rate.is_finite() && rate > 0.0 && rate * period <= 1.0 + 1e-9) {
+            if !(RATE_HZ.contains(rate) && rate * period <= 1.0 + 1e-9) {
                 return invalid(
                     "camera_rate_hz",
                     rate,
-                    "finite, > 0 and at most the control rate 1/period (Hz)",
+                    "within [1/3600, 1e6] Hz and at most the control rate 1/period",
                 );
             }
         }

@@ -55,7 +55,7 @@ use crate::measurement::{MeasurementModel, MeasurementParameters};
 use crate::robot::{builtin, JointKind, RobotError, SerialChain};
 use crate::servo::AdaptiveGain;
 use crate::sim::{
-    simulate_with, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
+    simulate_with, Decimated, Drive, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
 };
 use crate::stack::StackParameters;
 use crate::target::{RectangleTarget, TargetError};
@@ -69,7 +69,12 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod text_bounds;
+
 pub use text_bounds::{MAX_SCENARIO_BYTES, MAX_SCENARIO_DEPTH};
+
+/// The records [`Scenario::run`] keeps at most (65 536, a minute of a 1 kHz loop; a few tens of megabytes): every
+/// record of a shorter run, evenly spaced ones of a longer one ([`Decimated`]).
+pub const DEFAULT_RECORD_CAPACITY: usize = 1 << 16;
 
 /// Errors of scenario files. Each names the field at fault.
 #[non_exhaustive]
@@ -846,6 +851,10 @@ impl Scenario {
 
     /// Runs one of the four runs of [theory §9](crate::theory#s9) on this scenario.
     ///
+    /// Its records are kept in bounded memory ([`DEFAULT_RECORD_CAPACITY`]): every record of a run up to that many
+    /// iterations, evenly spaced ones beyond ([`Decimated`]), so that a budget of any size cannot exhaust memory. For
+    /// every record of a longer run, pass a `Vec<Record<N>>` to [`Scenario::run_experiment_with`].
+    ///
     /// # Errors
     /// Invalid fields (see [`Scenario::experiment`]), tasks undefined at the desired pose, simulation failures. The
     /// run's outcome (converged, joint limit, ...) is data in the [`Run`], not an error.
@@ -863,9 +872,9 @@ impl Scenario {
         experiment: &Experiment<N>,
         kind: RunKind,
     ) -> Result<Run<N>, ScenarioError> {
-        let mut records = Vec::new();
+        let mut records = Decimated::new(DEFAULT_RECORD_CAPACITY);
         let mut run = self.run_experiment_with(experiment, kind, &mut records)?;
-        run.records = records;
+        run.records = records.into_records();
         Ok(run)
     }
 

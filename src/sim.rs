@@ -33,7 +33,7 @@
 //! largest velocity step, continuity at every stack change, smallest joint-limit margin and obstacle distance.
 
 use crate::avoidance::{CompositeCost, Cost, CostError, JointLimits, ObstacleCost, VisibilityCost};
-use crate::bounds::PERIOD_S;
+use crate::bounds::{MAX_ITERATIONS, PERIOD_S};
 use crate::camera::{project_points, CameraError, CameraIntrinsics, EyeInHand, ImagePoint};
 use crate::controller::{
     ControllerError, ControllerParameters, ControllerStatus, EventKind, StackController,
@@ -398,7 +398,7 @@ impl<const N: usize> Scene<N> {
 pub struct SimulationParameters {
     /// The control period `Δt` (s), within [`PERIOD_S`].
     pub period: f64,
-    /// The iteration budget.
+    /// The iteration budget, at most [`MAX_ITERATIONS`] (10⁹).
     pub max_iterations: usize,
     /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task (the noise-free
     /// errors when the camera is not exact), and has stayed so for `convergence_hold_s`.
@@ -480,6 +480,13 @@ impl SimulationParameters {
         };
         if !PERIOD_S.contains(self.period) {
             return invalid("period", self.period, PERIOD_S.text);
+        }
+        if self.max_iterations > MAX_ITERATIONS {
+            return invalid(
+                "max_iterations",
+                self.max_iterations as f64,
+                "at most 1e9 (eleven days of a 1 kHz loop)",
+            );
         }
         if !(self.convergence_error.is_finite() && self.convergence_error > 0.0) {
             return invalid(

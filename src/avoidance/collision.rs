@@ -113,7 +113,8 @@ impl Geometry {
                     });
                 }
                 let path = meshes.resolve(link, filename)?;
-                let vertices = super::mesh::read_vertices(link, &path, scale)?;
+                let vertices =
+                    super::mesh::read_vertices(link, &path, scale, meshes.max_file_bytes())?;
                 let hull =
                     convex_hull(&vertices).ok_or_else(|| CostError::DegenerateConvexHull {
                         owner: link.to_owned(),

@@ -26,7 +26,7 @@ pub mod visibility;
 pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
 pub use joint_limits::JointLimits;
-pub use mesh::MeshPaths;
+pub use mesh::{MeshPaths, MAX_COLLADA_DEPTH, MAX_MESH_BYTES};
 pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 pub use visibility::VisibilityCost;
 
@@ -90,6 +90,27 @@ pub enum CostError {
         file: String,
         /// What is wrong (the format reader's message).
         message: String,
+    },
+    /// A mesh file is larger than the limit of its [`MeshPaths`], checked before it is read.
+    #[error("link {link:?}: mesh file {file} has {bytes} bytes, above the limit of {limit} (raise it with MeshPaths::with_max_file_bytes)")]
+    MeshTooLarge {
+        /// The link.
+        link: String,
+        /// The file.
+        file: String,
+        /// Its size (bytes; `limit + 1` when the size is known only by reading, as for a pipe).
+        bytes: u64,
+        /// The limit (bytes).
+        limit: usize,
+    },
+    /// A `package://` mesh URI leads outside its package's directory (a `..` component or an absolute path after the
+    /// package name), which [`MeshPaths`] refuses unless told otherwise.
+    #[error("link {link:?}: mesh {filename:?} leads outside its package's directory (allow it with MeshPaths::allowing_paths_outside_packages)")]
+    PathOutsidePackage {
+        /// The link.
+        link: String,
+        /// The URDF `filename`.
+        filename: String,
     },
     /// A `package://` mesh URI names a package that is neither in the package map nor on `ROS_PACKAGE_PATH`.
     #[error("link {link:?}: mesh {filename:?} names package {package:?}, which is neither in the package map nor on ROS_PACKAGE_PATH")]

@@ -16,10 +16,24 @@
 //! OpenCV writes a `%YAML:1.0` directive (not valid YAML: the directive needs a space) and tags its matrices
 //! `!!opencv-matrix`. Before parsing, the directive line is dropped and the tag removed; the rest is parsed by
 //! `yaml-rust2` as YAML 1.2.
+//!
+//! Bounds ([D17](crate::theory#d17)): a file is read through a reader that stops past [`MAX_CALIBRATION_BYTES`]
+//! (calibration files are a few hundred bytes); before the document is built, its events are scanned once for YAML
+//! aliases, which are refused (no calibration tool writes them, and a few kilobytes of nested aliases expand to
+//! billions of nodes), and for collections nested deeper than [`MAX_CALIBRATION_DEPTH`] levels.
 
 use super::{BrownConrady, CalibratedCamera, CameraError, CameraIntrinsics};
+use crate::bounds::{read_text_file, ReadFailure};
 use std::path::Path;
+use yaml_rust2::parser::{Event, Parser};
 use yaml_rust2::{Yaml, YamlLoader};
+
+/// The largest calibration file read (bytes): 1 MiB. A calibration file is a few hundred bytes; to parse a larger
+/// text, read it yourself and pass it to [`CalibratedCamera::from_yaml_str`].
+pub const MAX_CALIBRATION_BYTES: usize = 1 << 20;
+
+/// The deepest nesting of YAML collections accepted in a calibration text: 16 levels (the formats nest 2).
+pub const MAX_CALIBRATION_DEPTH: usize = 16;
 
 /// Errors of calibration-file loading. Each names the field at fault.
 #[non_exhaustive]
@@ -32,6 +46,24 @@ pub enum CalibrationError {
         path: String,
         /// The system's message.
         message: String,
+    },
+    /// The file is larger than [`MAX_CALIBRATION_BYTES`], checked before it is read.
+    #[error("calibration file {path} has {bytes} bytes, above the limit of {limit} (to parse a larger text, read it and pass it to CalibratedCamera::from_yaml_str)")]
+    TooLarge {
+        /// The path.
+        path: String,
+        /// Its size (bytes; `limit + 1` when the size is known only by reading, as for a pipe).
+        bytes: u64,
+        /// The limit (bytes).
+        limit: usize,
+    },
+    /// The text uses a YAML alias (`*name`), or nests collections deeper than [`MAX_CALIBRATION_DEPTH`].
+    #[error("calibration text refused at line {line}: {reason}")]
+    Refused {
+        /// The line (from 1).
+        line: usize,
+        /// Why.
+        reason: &'static str,
     },
     /// The text is not YAML (or is empty).
     #[error("calibration file is not valid YAML: {message}")]
@@ -151,10 +183,10 @@ impl CalibratedCamera {
     /// wrong size, a non-finite entry, a skewed camera matrix, a distortion model other than `plumb_bob`, 8 (rational)
     /// or another count than 4/5 distortion coefficients, a non-positive focal length or image size.
     pub fn from_yaml_str(text: &str) -> Result<Self, CalibrationError> {
-        let documents = YamlLoader::load_from_str(&normalized_yaml(text)).map_err(|e| {
-            CalibrationError::Yaml {
-                message: e.to_string(),
-            }
+        let text = normalized_yaml(text);
+        check_structure(&text)?;
+        let documents = YamlLoader::load_from_str(&text).map_err(|e| CalibrationError::Yaml {
+            message: e.to_string(),
         })?;
         let root = match documents.first() {
             Some(root @ Yaml::Hash(_)) => root,
@@ -221,13 +253,52 @@ impl CalibratedCamera {
     /// As [`Self::from_yaml_str`], reading the file at `path`.
     ///
     /// # Errors
-    /// [`CalibrationError::Io`] when the file cannot be read, then those of [`Self::from_yaml_str`].
+    /// [`CalibrationError::Io`] when the file cannot be read, [`CalibrationError::TooLarge`], then those of
+    /// [`Self::from_yaml_str`].
     pub fn from_yaml_file(path: &Path) -> Result<Self, CalibrationError> {
-        let text = std::fs::read_to_string(path).map_err(|e| CalibrationError::Io {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let text =
+            read_text_file(path, MAX_CALIBRATION_BYTES).map_err(|failure| match failure {
+                ReadFailure::Io(e) => CalibrationError::Io {
+                    path: path.display().to_string(),
+                    message: e.to_string(),
+                },
+                ReadFailure::TooLarge(bytes) => CalibrationError::TooLarge {
+                    path: path.display().to_string(),
+                    bytes,
+                    limit: MAX_CALIBRATION_BYTES,
+                },
+            })?;
         Self::from_yaml_str(&text)
+    }
+}
+
+/// Scans the YAML events of `text` once, without building the document: refuses aliases and collections nested
+/// deeper than [`MAX_CALIBRATION_DEPTH`] (module docs). Syntax errors are left to the loader, which names them.
+fn check_structure(text: &str) -> Result<(), CalibrationError> {
+    let mut parser = Parser::new_from_str(text);
+    let mut depth = 0usize;
+    loop {
+        let Ok((event, mark)) = parser.next_token() else {
+            return Ok(());
+        };
+        let refused = |reason| {
+            Err(CalibrationError::Refused {
+                line: mark.line(),
+                reason,
+            })
+        };
+        match event {
+            Event::StreamEnd => return Ok(()),
+            Event::Alias(_) => return refused("YAML aliases are not accepted"),
+            Event::SequenceStart(..) | Event::MappingStart(..) => {
+                depth += 1;
+                if depth > MAX_CALIBRATION_DEPTH {
+                    return refused("collections nested deeper than 16 levels");
+                }
+            }
+            Event::SequenceEnd | Event::MappingEnd => depth = depth.saturating_sub(1),
+            _ => {}
+        }
     }
 }
 

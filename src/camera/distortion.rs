@@ -15,6 +15,13 @@
 //! Undistortion inverts the map by Newton's method on `d(x, y) − (x_d, y_d) = 0` with the exact 2 × 2 Jacobian of
 //! `d`, starting from `(x_d, y_d)`; it stops when the residual is below [`UNDISTORTION_TOLERANCE`] (normalised units)
 //! and gives up after [`UNDISTORTION_MAX_ITERATIONS`] steps with [`CameraError::UndistortionFailed`].
+//!
+//! **The fold.** The radial map `r ↦ r D(r)`, `D(r) = 1 + k1 r² + k2 r⁴ + k3 r⁶`, is one-to-one only up to the
+//! first radius `r_f` where its slope `d(r D(r))/dr = 1 + 3 k1 r² + 5 k2 r⁴ + 7 k3 r⁶` reaches 0 (∞ when it never
+//! does): past it the lens folds the image back onto itself, and a pixel there has two or more preimages (or none).
+//! [`BrownConrady::fold_radius`] computes `r_f` once, when the coefficients are set, and undistortion refuses a
+//! preimage at or past it ([`CameraError::BeyondFold`]) — even where Newton's method converges there, as it does for
+//! a lens whose slope turns positive again (`k1 = −1, k3 = 0.5`).
 
 use super::CameraError;
 
@@ -27,26 +34,102 @@ pub const UNDISTORTION_MAX_ITERATIONS: usize = 20;
 
 /// Brown–Conrady distortion coefficients `(k1, k2, p1, p2, k3)` (dimensionless, OpenCV order): radial `k1, k2, k3`,
 /// tangential `p1, p2`. The default is no distortion.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BrownConrady {
     k1: f64,
     k2: f64,
     p1: f64,
     p2: f64,
     k3: f64,
+    /// `r_f²`, the square of the fold radius (module docs), `∞` when the radial map never folds.
+    fold_r2: f64,
+}
+
+impl Default for BrownConrady {
+    /// No distortion (the pinhole model), which never folds.
+    fn default() -> Self {
+        Self {
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+            fold_r2: f64::INFINITY,
+        }
+    }
+}
+
+/// The smallest `s > 0` where `g(s) = 1 + 3 k1 s + 5 k2 s² + 7 k3 s³` (the radial map's slope at `r² = s`) reaches
+/// 0, `∞` when it stays positive. `g` is monotone between the roots of `g'(s) = 3 k1 + 10 k2 s + 21 k3 s²`, so its
+/// first sign change lies in the first of those intervals whose right end is non-positive, where bisection finds it.
+fn first_fold(k1: f64, k2: f64, k3: f64) -> f64 {
+    let g = |s: f64| 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3));
+    // The roots of g' in (0, ∞), in increasing order.
+    let (a, b, c) = (21.0 * k3, 10.0 * k2, 3.0 * k1);
+    let mut ends = [f64::INFINITY; 3];
+    if a != 0.0 {
+        let discriminant = b * b - 4.0 * a * c;
+        if discriminant >= 0.0 {
+            let root = discriminant.sqrt();
+            let (r1, r2) = ((-b - root) / (2.0 * a), (-b + root) / (2.0 * a));
+            ends[0] = r1.min(r2);
+            ends[1] = r1.max(r2);
+        }
+    } else if b != 0.0 {
+        ends[0] = -c / b;
+    }
+    let mut low = 0.0f64;
+    for end in ends.into_iter().filter(|e| *e > 0.0) {
+        let mut high = end;
+        if high.is_infinite() {
+            // g is monotone on (low, ∞): it falls to 0 only if it falls without bound; find a finite bracket.
+            high = low.max(1.0);
+            while g(high) > 0.0 {
+                high *= 2.0;
+                if !high.is_finite() || g(high) > g(high / 2.0) {
+                    return f64::INFINITY;
+                }
+            }
+        }
+        if g(high) <= 0.0 {
+            for _ in 0..200 {
+                let middle = 0.5 * (low + high);
+                if middle <= low || middle >= high {
+                    break;
+                }
+                if g(middle) > 0.0 {
+                    low = middle;
+                } else {
+                    high = middle;
+                }
+            }
+            return high;
+        }
+        low = end;
+    }
+    f64::INFINITY
 }
 
 impl BrownConrady {
     /// Coefficients in OpenCV's order.
     ///
     /// # Errors
-    /// [`CameraError::InvalidDistortion`] when a coefficient is not finite.
+    /// [`CameraError::InvalidDistortion`] when a coefficient is outside
+    /// [`DISTORTION_COEFFICIENT`](crate::bounds::DISTORTION_COEFFICIENT) (NaN and infinities never pass).
     pub fn new(k1: f64, k2: f64, p1: f64, p2: f64, k3: f64) -> Result<Self, CameraError> {
         let named = [("k1", k1), ("k2", k2), ("p1", p1), ("p2", p2), ("k3", k3)];
-        if let Some(&(name, value)) = named.iter().find(|(_, v)| !v.is_finite()) {
+        let range = crate::bounds::DISTORTION_COEFFICIENT;
+        if let Some(&(name, value)) = named.iter().find(|(_, v)| !range.contains(*v)) {
             return Err(CameraError::InvalidDistortion { name, value });
         }
-        Ok(Self { k1, k2, p1, p2, k3 })
+        Ok(Self {
+            k1,
+            k2,
+            p1,
+            p2,
+            k3,
+            fold_r2: first_fold(k1, k2, k3),
+        })
     }
 
     /// Coefficients from a list as calibration files write it: `(k1, k2, p1, p2)` (`k3 = 0`) or
@@ -74,6 +157,12 @@ impl BrownConrady {
     /// The coefficients `[k1, k2, p1, p2, k3]`.
     pub fn coefficients(&self) -> [f64; 5] {
         [self.k1, self.k2, self.p1, self.p2, self.k3]
+    }
+
+    /// The fold radius `r_f` (normalised units, module docs): the first radius where the radial map's slope reaches
+    /// 0, `∞` when it never does. Undistortion refuses preimages at or past it.
+    pub fn fold_radius(&self) -> f64 {
+        self.fold_r2.sqrt()
     }
 
     /// `true` when every coefficient is zero (the pinhole model).
@@ -118,7 +207,8 @@ impl BrownConrady {
     /// # Errors
     /// [`CameraError::NonFiniteImagePoint`] for a non-finite input; [`CameraError::UndistortionFailed`] when the
     /// residual is still above [`UNDISTORTION_TOLERANCE`] after [`UNDISTORTION_MAX_ITERATIONS`] steps, or the
-    /// Jacobian is singular (the point lies beyond the radius where the lens model folds back).
+    /// Jacobian is singular (the point lies beyond the radius where the lens model folds back);
+    /// [`CameraError::BeyondFold`] when the preimage found lies at or past the [fold radius](Self::fold_radius).
     pub fn undistort(&self, x_d: f64, y_d: f64) -> Result<(f64, f64), CameraError> {
         if !(x_d.is_finite() && y_d.is_finite()) {
             return Err(CameraError::NonFiniteImagePoint { x: x_d, y: y_d });
@@ -138,6 +228,15 @@ impl BrownConrady {
                 return Err(failed(residual, iteration));
             }
             if residual <= UNDISTORTION_TOLERANCE {
+                let r2 = x * x + y * y;
+                if r2 >= self.fold_r2 {
+                    return Err(CameraError::BeyondFold {
+                        x_distorted: x_d,
+                        y_distorted: y_d,
+                        radius: r2.sqrt(),
+                        fold_radius: self.fold_radius(),
+                    });
+                }
                 return Ok((x, y));
             }
             if iteration == UNDISTORTION_MAX_ITERATIONS {
@@ -233,6 +332,96 @@ mod tests {
             d.undistort(1.0, 0.0),
             Err(CameraError::UndistortionFailed { .. })
         ));
+    }
+
+    #[test]
+    fn fold_radius_is_where_the_radial_slope_first_vanishes() {
+        let slope = |d: &BrownConrady, r: f64| {
+            let s = r * r;
+            1.0 + 3.0 * d.k1 * s + 5.0 * d.k2 * s * s + 7.0 * d.k3 * s * s * s
+        };
+        // Barrel k1 = −0.2: slope 1 − 0.6 r², zero at r² = 1/0.6 (hand-computed).
+        let barrel = BrownConrady::new(-0.2, 0.0, 0.0, 0.0, 0.0).unwrap();
+        assert!((barrel.fold_radius() - (1.0f64 / 0.6).sqrt()).abs() < 1e-12);
+        // A pincushion lens and the pinhole never fold.
+        assert_eq!(
+            BrownConrady::new(0.2, 0.05, 0.0, 0.0, 0.0)
+                .unwrap()
+                .fold_radius(),
+            f64::INFINITY
+        );
+        assert_eq!(BrownConrady::default().fold_radius(), f64::INFINITY);
+        // k1 = −1, k3 = 0.5: the slope 1 − 3 s + 3.5 s³ dips below 0 between two roots and turns positive again.
+        let dip = BrownConrady::new(-1.0, 0.0, 0.0, 0.0, 0.5).unwrap();
+        let r_f = dip.fold_radius();
+        assert!(
+            slope(&dip, r_f).abs() < 1e-9,
+            "slope {} at {r_f}",
+            slope(&dip, r_f)
+        );
+        assert!((0..1000).all(|i| slope(&dip, r_f * f64::from(i) / 1000.0) > 0.0));
+        // A lens whose slope falls only through its cubic term: 1 − 7e−6 s³ vanishes at s = (1/7e−6)^(1/3).
+        let far = BrownConrady::new(0.0, 0.0, 0.0, 0.0, -1e-6).unwrap();
+        assert!((far.fold_radius().powi(2) - (1.0f64 / 7e-6).cbrt()).abs() < 1e-9);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+        /// Over any coefficients, the slope is positive on a fine grid inside the fold radius and reaches 0 at it.
+        #[test]
+        fn fold_radius_is_the_first_zero_of_the_slope(
+            k1 in -2.0..2.0f64, k2 in -2.0..2.0f64, k3 in -2.0..2.0f64,
+        ) {
+            let d = BrownConrady::new(k1, k2, 0.0, 0.0, k3).unwrap();
+            let slope = |s: f64| 1.0 + 3.0 * k1 * s + 5.0 * k2 * s * s + 7.0 * k3 * s * s * s;
+            let r_f = d.fold_radius();
+            let reach = if r_f.is_finite() { r_f * r_f } else { 100.0 };
+            for i in 0..2000 {
+                let s = reach * f64::from(i) / 2000.0;
+                prop_assert!(slope(s) > 0.0, "slope {} at s = {s} below s_f = {reach}", slope(s));
+            }
+            if r_f.is_finite() {
+                prop_assert!(slope(r_f * r_f).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn a_non_monotonic_lens_refuses_every_pixel_past_its_fold() {
+        // k1 = −1, k3 = 0.5: Newton converges past the fold for many pixels, where the slope is positive again.
+        let d = BrownConrady::new(-1.0, 0.0, 0.0, 0.0, 0.5).unwrap();
+        let r_f = d.fold_radius();
+        let (mut refused, mut inside) = (0, 0);
+        for i in -40..=40 {
+            for j in -40..=40 {
+                let (xd, yd) = (f64::from(i) / 25.0, f64::from(j) / 25.0);
+                match d.undistort(xd, yd) {
+                    Ok((x, y)) => {
+                        assert!(
+                            x.hypot(y) < r_f,
+                            "({xd}, {yd}) undistorted past the fold to ({x}, {y})"
+                        );
+                        inside += 1;
+                    }
+                    Err(
+                        CameraError::BeyondFold { .. } | CameraError::UndistortionFailed { .. },
+                    ) => refused += 1,
+                    Err(other) => panic!("{other}"),
+                }
+            }
+        }
+        // Both answers occur on this grid (the distorted radius reaches 0.40 at the fold).
+        assert!(
+            inside > 100 && refused > 100,
+            "{inside} inside, {refused} refused"
+        );
+        // A pixel whose only preimages lie past the fold is refused by name.
+        let (xd, _) = d.distort(1.3, 0.0);
+        assert!(
+            matches!(d.undistort(xd, 0.0), Err(CameraError::BeyondFold { .. })),
+            "{:?}",
+            d.undistort(xd, 0.0)
+        );
     }
 
     /// Coefficients in the ranges of real calibrations (|k1| ≤ 0.5, |k2| ≤ 0.2, |k3| ≤ 0.05, |p| ≤ 0.01).

@@ -11,7 +11,9 @@
 mod calibration;
 mod distortion;
 
-pub use calibration::{CalibrationError, CalibrationFormat};
+pub use calibration::{
+    CalibrationError, CalibrationFormat, MAX_CALIBRATION_BYTES, MAX_CALIBRATION_DEPTH,
+};
 pub use distortion::{BrownConrady, UNDISTORTION_MAX_ITERATIONS, UNDISTORTION_TOLERANCE};
 
 use crate::math::{all_finite, twist_transform, KinematicJacobian, TwistTransform};
@@ -44,13 +46,16 @@ pub const MIN_DEPTH: f64 = 1e-6;
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraError {
-    /// An intrinsic parameter is non-finite, or a focal length or image size is not strictly positive.
-    #[error("invalid camera intrinsic {name} = {value}")]
+    /// An intrinsic parameter is outside its physical range ([`crate::bounds::FOCAL_LENGTH_PX`],
+    /// [`crate::bounds::PRINCIPAL_POINT_PX`], [`crate::bounds::IMAGE_SIZE_PX`]).
+    #[error("invalid camera intrinsic {name} = {value}: expected {expected}")]
     InvalidIntrinsic {
         /// The parameter (`"fx"`, `"fy"`, `"cx"`, `"cy"`, `"width"`, `"height"`).
         name: &'static str,
         /// Its value.
         value: f64,
+        /// Its range.
+        expected: &'static str,
     },
     /// A point to project lies at or behind the camera: its depth is not above [`MIN_DEPTH`].
     #[error("point {index} is at or behind the camera (depth {depth} m)")]
@@ -66,8 +71,8 @@ pub enum CameraError {
         /// What was not finite (`"point 2"`, `"c_from_o"`, `"e_from_c"`).
         what: String,
     },
-    /// A distortion coefficient is not finite.
-    #[error("invalid distortion coefficient {name} = {value}")]
+    /// A distortion coefficient is outside [`crate::bounds::DISTORTION_COEFFICIENT`] (±1e4, finite).
+    #[error("invalid distortion coefficient {name} = {value}: expected finite, within ±1e4")]
     InvalidDistortion {
         /// The coefficient (`"k1"`, `"k2"`, `"p1"`, `"p2"`, `"k3"`).
         name: &'static str,
@@ -112,6 +117,20 @@ pub enum CameraError {
         /// Newton steps taken.
         iterations: usize,
     },
+    /// Undistortion found a preimage at or past the lens model's fold radius, where the model is not one-to-one.
+    #[error(
+        "undistortion of ({x_distorted}, {y_distorted}) lands at radius {radius}, at or past the lens model's fold radius {fold_radius}"
+    )]
+    BeyondFold {
+        /// Distorted normalised abscissa.
+        x_distorted: f64,
+        /// Distorted normalised ordinate.
+        y_distorted: f64,
+        /// Radius of the preimage found (normalised units).
+        radius: f64,
+        /// The fold radius (normalised units).
+        fold_radius: f64,
+    },
     /// The output slice does not have one entry per input point.
     #[error("{points} points but an output slice of {outputs}")]
     LengthMismatch {
@@ -141,7 +160,10 @@ impl CameraIntrinsics {
     /// `height` (px).
     ///
     /// # Errors
-    /// [`CameraError::InvalidIntrinsic`] when a value is non-finite or a focal length or size is not `> 0`.
+    /// [`CameraError::InvalidIntrinsic`] when a focal length is outside [`FOCAL_LENGTH_PX`](crate::bounds::FOCAL_LENGTH_PX)
+    /// (`1e−300` px would scale every normalised coordinate by `1e300`), the principal point outside
+    /// [`PRINCIPAL_POINT_PX`](crate::bounds::PRINCIPAL_POINT_PX) or a size outside
+    /// [`IMAGE_SIZE_PX`](crate::bounds::IMAGE_SIZE_PX) (NaN and infinities never pass).
     pub fn new(
         fx: f64,
         fy: f64,
@@ -150,12 +172,21 @@ impl CameraIntrinsics {
         width: f64,
         height: f64,
     ) -> Result<Self, CameraError> {
-        let positive = [("fx", fx), ("fy", fy), ("width", width), ("height", height)];
-        let any = [("cx", cx), ("cy", cy)];
-        let bad_positive = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0));
-        let bad_any = any.iter().find(|(_, v)| !v.is_finite());
-        match bad_positive.or(bad_any) {
-            Some(&(name, value)) => Err(CameraError::InvalidIntrinsic { name, value }),
+        use crate::bounds::{FOCAL_LENGTH_PX, IMAGE_SIZE_PX, PRINCIPAL_POINT_PX};
+        let checked = [
+            ("fx", fx, FOCAL_LENGTH_PX),
+            ("fy", fy, FOCAL_LENGTH_PX),
+            ("cx", cx, PRINCIPAL_POINT_PX),
+            ("cy", cy, PRINCIPAL_POINT_PX),
+            ("width", width, IMAGE_SIZE_PX),
+            ("height", height, IMAGE_SIZE_PX),
+        ];
+        match checked.iter().find(|(_, v, range)| !range.contains(*v)) {
+            Some(&(name, value, range)) => Err(CameraError::InvalidIntrinsic {
+                name,
+                value,
+                expected: range.text,
+            }),
             None => Ok(Self {
                 fx,
                 fy,

@@ -69,7 +69,7 @@ mod xml_bounds;
 
 pub use kinematics::{KinematicState, KinematicsWorkspace};
 pub(crate) use urdf::parse_urdf;
-pub(crate) use xml_bounds::read_urdf_file;
+pub(crate) use xml_bounds::{first_too_deep, read_urdf_file};
 pub use xml_bounds::{MAX_URDF_BYTES, MAX_URDF_DEPTH};
 
 use crate::bounds::JOINT_POSITION;

@@ -18,11 +18,7 @@ pub const MAX_URDF_BYTES: usize = 8 << 20;
 /// thread (the fuzz harness runs on such a thread and checks it).
 pub const MAX_URDF_DEPTH: usize = 64;
 
-/// Checks the size and the element nesting depth of URDF text.
-///
-/// The depth counted is never less than the parser's: comments, processing instructions, CDATA sections and
-/// declarations are skipped, attribute values are skipped whole (a `>` inside quotes does not end a tag), an
-/// element opens one level unless its tag ends with `/>`, and a closing tag closes one.
+/// Checks the size and the element nesting depth of URDF text ([`first_too_deep`]).
 ///
 /// # Errors
 /// [`RobotError::UrdfTooLarge`], [`RobotError::UrdfTooDeep`] (with the line where the limit is passed).
@@ -33,7 +29,23 @@ pub(crate) fn check_urdf_text(xml: &str) -> Result<(), RobotError> {
             limit: MAX_URDF_BYTES,
         });
     }
-    let bytes = xml.as_bytes();
+    match first_too_deep(xml.as_bytes(), MAX_URDF_DEPTH) {
+        Some(line) => Err(RobotError::UrdfTooDeep {
+            depth: MAX_URDF_DEPTH + 1,
+            limit: MAX_URDF_DEPTH,
+            line,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The line (from 1) of the first element of XML text nested deeper than `limit` levels, `None` when none is: one
+/// pass, no recursion, for any XML the crate reads (URDF, COLLADA meshes).
+///
+/// The depth counted is never less than a parser's: comments, processing instructions, CDATA sections and
+/// declarations are skipped, attribute values are skipped whole (a `>` inside quotes does not end a tag), an
+/// element opens one level unless its tag ends with `/>`, and a closing tag closes one.
+pub(crate) fn first_too_deep(bytes: &[u8], limit: usize) -> Option<usize> {
     let mut depth = 0usize;
     let mut i = 0;
     while let Some(offset) = bytes[i..].iter().position(|&b| b == b'<') {
@@ -58,18 +70,14 @@ pub(crate) fn check_urdf_text(xml: &str) -> Result<(), RobotError> {
                 depth = depth.saturating_sub(1);
             } else if !self_closing {
                 depth += 1;
-                if depth > MAX_URDF_DEPTH {
-                    return Err(RobotError::UrdfTooDeep {
-                        depth,
-                        limit: MAX_URDF_DEPTH,
-                        line: 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count(),
-                    });
+                if depth > limit {
+                    return Some(1 + bytes[..start].iter().filter(|&&b| b == b'\n').count());
                 }
             }
             end
         };
     }
-    Ok(())
+    None
 }
 
 /// The index after the `>` that ends the tag whose content starts at `from` (quoted attribute values skipped), and

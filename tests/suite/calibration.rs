@@ -172,7 +172,8 @@ fn non_finite_and_negative_values_are_named() {
         ros_error(K, "data: [-612.5, 0, 318.25, 0, 611.75, 241.5, 0, 0, 1]"),
         CalibrationError::Camera(CameraError::InvalidIntrinsic {
             name: "fx",
-            value: -612.5
+            value: -612.5,
+            expected: servostack::bounds::FOCAL_LENGTH_PX.text,
         })
     );
     assert!(matches!(

@@ -29,6 +29,11 @@ fn intrinsics_are_validated() {
             f64::NEG_INFINITY,
         ),
         ([800.0, 600.0, 320.0, 240.0, 0.0, 480.0], "width", 0.0),
+        // A focal length of 1e−300 px would scale every normalised coordinate by 1e300.
+        ([1e-300, 600.0, 320.0, 240.0, 640.0, 480.0], "fx", 1e-300),
+        ([800.0, 0.5, 320.0, 240.0, 640.0, 480.0], "fy", 0.5),
+        ([800.0, 600.0, 320.0, 240.0, 640.0, 2e6], "height", 2e6),
+        ([800.0, 600.0, -3e6, 240.0, 640.0, 480.0], "cx", -3e6),
         (
             [800.0, 600.0, 320.0, 240.0, 640.0, -480.0],
             "height",
@@ -36,14 +41,25 @@ fn intrinsics_are_validated() {
         ),
     ];
     for ([fx, fy, cx, cy, w, h], name, value) in bad {
+        let expected = match name {
+            "fx" | "fy" => servostack::bounds::FOCAL_LENGTH_PX.text,
+            "cx" | "cy" => servostack::bounds::PRINCIPAL_POINT_PX.text,
+            _ => servostack::bounds::IMAGE_SIZE_PX.text,
+        };
         assert_eq!(
             CameraIntrinsics::new(fx, fy, cx, cy, w, h),
-            Err(CameraError::InvalidIntrinsic { name, value })
+            Err(CameraError::InvalidIntrinsic {
+                name,
+                value,
+                expected
+            })
         );
     }
+    // The ends of the ranges are admissible: a one-pixel focal length, a million-pixel image.
+    assert!(CameraIntrinsics::new(1.0, 1e6, -1e6, 1e6, 1.0, 1e6).is_ok());
     let nan = CameraIntrinsics::new(f64::NAN, 600.0, 320.0, 240.0, 640.0, 480.0);
     assert!(
-        matches!(nan, Err(CameraError::InvalidIntrinsic { name: "fx", value }) if value.is_nan())
+        matches!(nan, Err(CameraError::InvalidIntrinsic { name: "fx", value, .. }) if value.is_nan())
     );
 }
 
