@@ -1,14 +1,20 @@
 //! The fuzz harness of the crate ([D17](crate::theory#d17)): structured mutations of the shipped URDFs and scenario
-//! files, and random inputs to the public control-step functions, each run through load → validate → (when accepted)
-//! a few kinematics, cost and control steps, on a worker thread of known stack size, with a time limit.
+//! files, of mesh and calibration files ([`readers`]), random inputs to the public control-step functions and random
+//! sequences of good and corrupted frames through the façade ([`servo_sequence`]), each run through load → validate →
+//! (when accepted) a few kinematics, cost and control steps, on a worker thread of known stack size, with a time
+//! limit.
 //!
-//! A case passes when it returns (no hang), does not panic and returns no non-finite number inside an `Ok`: a
-//! rejected input is a pass, as long as its error is an error. `tests/suite/fuzz.rs` runs a bounded, seeded number of cases
+//! A case passes when it returns (no hang), does not panic and returns no non-finite number, nor a value that
+//! contradicts its definition, inside an `Ok`: a rejected input is a pass, as long as its error is an error. `tests/suite/fuzz.rs` runs a bounded, seeded number of cases
 //! and replays every input that once failed (`tests/data/fuzz_regressions/`); `examples/fuzz.rs` runs for as long as
 //! asked and saves new failures there. Not part of the crate's API (hidden from its docs): it is here so that the
 //! test and the example share it.
 
 pub mod mutate;
+pub mod readers;
+pub mod servo_sequence;
+
+pub use readers::{calibration_case, mesh_case};
 
 use crate::avoidance::{Cost, JointLimits};
 use crate::controller::{ControllerParameters, StackController};
@@ -54,6 +60,23 @@ pub enum Case {
         /// The seed.
         seed: u64,
     },
+    /// A mesh file's bytes, read as a file of this extension.
+    Mesh {
+        /// `stl`, `obj` or `dae`.
+        extension: String,
+        /// The bytes.
+        bytes: Vec<u8>,
+    },
+    /// A calibration file.
+    Calibration {
+        /// The text.
+        text: String,
+    },
+    /// A sequence of good and corrupted periods through the façade, drawn from a seed.
+    Servo {
+        /// The seed.
+        seed: u64,
+    },
 }
 
 /// How a case ended, when it returned.
@@ -65,6 +88,8 @@ pub enum Verdict {
     Rejected(String),
     /// A non-finite number was returned inside an `Ok` (where).
     NonFinite(String),
+    /// A finite value returned inside an `Ok` contradicts its definition (what).
+    Wrong(String),
     /// The case panicked (the message).
     Panicked(String),
 }
@@ -72,7 +97,10 @@ pub enum Verdict {
 impl Verdict {
     /// `true` for a failure: a panic or a non-finite value.
     pub fn is_failure(&self) -> bool {
-        matches!(self, Self::NonFinite(_) | Self::Panicked(_))
+        matches!(
+            self,
+            Self::NonFinite(_) | Self::Wrong(_) | Self::Panicked(_)
+        )
     }
 }
 
@@ -84,7 +112,7 @@ pub const URDF_SEEDS: [(&str, &str); 3] = [
 ];
 
 /// The shipped scenario files, by name.
-pub const SCENARIO_SEEDS: [(&str, &str); 7] = [
+pub const SCENARIO_SEEDS: [(&str, &str); 9] = [
     (
         "obstacle_afma6",
         include_str!("../../assets/scenarios/obstacle_afma6.toml"),
@@ -92,6 +120,14 @@ pub const SCENARIO_SEEDS: [(&str, &str); 7] = [
     (
         "paper_afma6",
         include_str!("../../assets/scenarios/paper_afma6.toml"),
+    ),
+    (
+        "paper_afma6_noisy_camera",
+        include_str!("../../assets/scenarios/paper_afma6_noisy_camera.toml"),
+    ),
+    (
+        "paper_afma6_pixel_noise",
+        include_str!("../../assets/scenarios/paper_afma6_pixel_noise.toml"),
     ),
     (
         "paper_afma6_real_camera",
@@ -138,6 +174,9 @@ pub fn run_case(case: &Case) -> Verdict {
         },
         Case::Scenario { text } => check_scenario(text),
         Case::Control { seed } => check_control(*seed),
+        Case::Mesh { extension, bytes } => readers::check_mesh(extension, bytes),
+        Case::Calibration { text } => readers::check_calibration(text),
+        Case::Servo { seed } => servo_sequence::check_servo(*seed),
     }
 }
 
@@ -471,6 +510,8 @@ pub struct Counts {
     pub panics: usize,
     /// Cases that returned a non-finite value inside an `Ok`.
     pub non_finite: usize,
+    /// Cases that returned a value contradicting its definition inside an `Ok`.
+    pub wrong: usize,
     /// Cases that did not return within the time limit.
     pub hangs: usize,
 }
@@ -484,13 +525,14 @@ impl Counts {
             Some(Verdict::Rejected(_)) => self.rejected += 1,
             Some(Verdict::Panicked(_)) => self.panics += 1,
             Some(Verdict::NonFinite(_)) => self.non_finite += 1,
+            Some(Verdict::Wrong(_)) => self.wrong += 1,
             None => self.hangs += 1,
         }
     }
 
-    /// Panics, non-finite values and hangs.
+    /// Panics, non-finite or wrong values and hangs.
     pub fn failures(&self) -> usize {
-        self.panics + self.non_finite + self.hangs
+        self.panics + self.non_finite + self.wrong + self.hangs
     }
 }
 
@@ -498,45 +540,79 @@ impl std::fmt::Display for Counts {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} cases: {} accepted, {} rejected; {} panics, {} non-finite in Ok, {} hangs",
-            self.cases, self.accepted, self.rejected, self.panics, self.non_finite, self.hangs
+            "{} cases: {} accepted, {} rejected; {} panics, {} non-finite in Ok, {} wrong in Ok, {} hangs",
+            self.cases,
+            self.accepted,
+            self.rejected,
+            self.panics,
+            self.non_finite,
+            self.wrong,
+            self.hangs
         )
     }
 }
 
-/// The file name of a regression case (kind, robot and a hash of the input), and its content.
-pub fn regression_file(case: &Case) -> (String, String) {
+/// The file name of a regression case (kind, robot or extension, and a hash of the input), and its content.
+pub fn regression_file(case: &Case) -> (String, Vec<u8>) {
     use std::hash::{Hash, Hasher};
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     case.hash(&mut hasher);
     let hash = hasher.finish();
     match case {
-        Case::Urdf { robot, text } => (format!("urdf-{robot}-{hash:016x}.urdf"), text.clone()),
-        Case::Scenario { text } => (format!("scenario-{hash:016x}.toml"), text.clone()),
-        Case::Control { seed } => (format!("control-{seed}.seed"), seed.to_string()),
+        Case::Urdf { robot, text } => (
+            format!("urdf-{robot}-{hash:016x}.urdf"),
+            text.clone().into_bytes(),
+        ),
+        Case::Scenario { text } => (
+            format!("scenario-{hash:016x}.toml"),
+            text.clone().into_bytes(),
+        ),
+        Case::Control { seed } => (
+            format!("control-{seed}.seed"),
+            seed.to_string().into_bytes(),
+        ),
+        Case::Mesh { extension, bytes } => (format!("mesh-{hash:016x}.{extension}"), bytes.clone()),
+        Case::Calibration { text } => (
+            format!("calibration-{hash:016x}.yaml"),
+            text.clone().into_bytes(),
+        ),
+        Case::Servo { seed } => (format!("servo-{seed}.seed"), seed.to_string().into_bytes()),
     }
 }
 
-/// The case a regression file holds, from its name and content (`None` for a name of no kind).
-pub fn case_from_file(name: &str, content: &str) -> Option<Case> {
+/// The case a regression file holds, from its name and content (`None` for a name of no kind, or text kinds whose
+/// content is not UTF-8).
+pub fn case_from_file(name: &str, content: &[u8]) -> Option<Case> {
+    if let Some(rest) = name.strip_prefix("mesh-") {
+        return Some(Case::Mesh {
+            extension: rest.rsplit_once('.')?.1.to_owned(),
+            bytes: content.to_vec(),
+        });
+    }
+    let text = std::str::from_utf8(content).ok()?;
     if let Some(rest) = name.strip_prefix("urdf-") {
         let robot = rest.split('-').next()?;
         return Some(Case::Urdf {
             robot: robot.to_owned(),
-            text: content.to_owned(),
+            text: text.to_owned(),
         });
     }
     if name.starts_with("scenario-") {
         return Some(Case::Scenario {
-            text: content.to_owned(),
+            text: text.to_owned(),
         });
     }
+    if name.starts_with("calibration-") {
+        return Some(Case::Calibration {
+            text: text.to_owned(),
+        });
+    }
+    let seed = || text.trim().parse().ok();
     if name.starts_with("control-") {
-        return content
-            .trim()
-            .parse()
-            .ok()
-            .map(|seed| Case::Control { seed });
+        return seed().map(|seed| Case::Control { seed });
+    }
+    if name.starts_with("servo-") {
+        return seed().map(|seed| Case::Servo { seed });
     }
     None
 }
@@ -547,6 +623,9 @@ impl std::hash::Hash for Case {
             Case::Urdf { robot, text } => (0u8, robot, text).hash(state),
             Case::Scenario { text } => (1u8, text).hash(state),
             Case::Control { seed } => (2u8, seed).hash(state),
+            Case::Mesh { extension, bytes } => (3u8, extension, bytes).hash(state),
+            Case::Calibration { text } => (4u8, text).hash(state),
+            Case::Servo { seed } => (5u8, seed).hash(state),
         }
     }
 }

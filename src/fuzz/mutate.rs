@@ -1,5 +1,6 @@
-//! Structured mutations of text inputs (URDF and scenario files): numbers to extremes, lines deleted, duplicated or
-//! swapped, names and kinds swapped, nesting deepened, text truncated.
+//! Structured mutations of text inputs (URDF, scenario, calibration and text mesh files): numbers to extremes, lines
+//! deleted, duplicated or swapped, names and kinds swapped, nesting deepened (and YAML aliases multiplied), text
+//! truncated.
 
 use rand::rngs::StdRng;
 use rand::RngExt;
@@ -11,6 +12,10 @@ pub enum Syntax {
     Xml,
     /// A scenario file (TOML).
     Toml,
+    /// A calibration file (YAML).
+    Yaml,
+    /// A line-based text mesh (Wavefront OBJ, ASCII STL).
+    Lines,
 }
 
 /// Numbers that break naive code: overflow, underflow, NaN and infinities (in the spellings both formats and Rust's
@@ -70,6 +75,41 @@ const TOML_WORDS: [&str; 14] = [
     "kernel_projection",
     "",
 ];
+
+const YAML_WORDS: [&str; 9] = [
+    "plumb_bob",
+    "rational_polynomial",
+    "equidistant",
+    "!!opencv-matrix",
+    "*a",
+    "&a",
+    "~",
+    "{}",
+    "",
+];
+const LINE_WORDS: [&str; 9] = [
+    "v",
+    "f",
+    "vn",
+    "facet",
+    "vertex",
+    "endloop",
+    "endsolid",
+    "mtllib /etc",
+    "",
+];
+
+/// A YAML alias bomb: nine levels of anchors, each a list of nine aliases of the one before (9⁹ nodes once
+/// expanded, from about 400 bytes).
+const ALIAS_BOMB: &str = "a0: &a0 [x, x, x, x, x, x, x, x, x]\n\
+a1: &a1 [*a0, *a0, *a0, *a0, *a0, *a0, *a0, *a0, *a0]\n\
+a2: &a2 [*a1, *a1, *a1, *a1, *a1, *a1, *a1, *a1, *a1]\n\
+a3: &a3 [*a2, *a2, *a2, *a2, *a2, *a2, *a2, *a2, *a2]\n\
+a4: &a4 [*a3, *a3, *a3, *a3, *a3, *a3, *a3, *a3, *a3]\n\
+a5: &a5 [*a4, *a4, *a4, *a4, *a4, *a4, *a4, *a4, *a4]\n\
+a6: &a6 [*a5, *a5, *a5, *a5, *a5, *a5, *a5, *a5, *a5]\n\
+a7: &a7 [*a6, *a6, *a6, *a6, *a6, *a6, *a6, *a6, *a6]\n\
+a8: &a8 [*a7, *a7, *a7, *a7, *a7, *a7, *a7, *a7, *a7]\n";
 
 /// Nesting depths tried when deepening: around the URDF limit, and far beyond (where an unchecked recursive parser
 /// overflows a 2 MiB stack).
@@ -208,13 +248,16 @@ fn replace_quoted(text: &str, syntax: Syntax, rng: &mut StdRng) -> String {
         match syntax {
             Syntax::Xml => XML_WORDS[rng.random_range(0..XML_WORDS.len())],
             Syntax::Toml => TOML_WORDS[rng.random_range(0..TOML_WORDS.len())],
+            Syntax::Yaml => YAML_WORDS[rng.random_range(0..YAML_WORDS.len())],
+            Syntax::Lines => LINE_WORDS[rng.random_range(0..LINE_WORDS.len())],
         }
         .to_owned()
     };
     format!("{}{replacement}{}", &text[..start], &text[end..])
 }
 
-/// Nested elements (XML) or nested arrays and inline tables (TOML) inserted at a line start.
+/// Nested elements (XML), nested arrays and inline tables (TOML), nested flow collections or an alias bomb (YAML), or
+/// many vertices of extreme coordinates (text meshes), inserted at a line start.
 fn deepen(text: &str, syntax: Syntax, rng: &mut StdRng) -> String {
     let depth = DEPTHS[rng.random_range(0..DEPTHS.len())];
     let nested = match syntax {
@@ -223,6 +266,12 @@ fn deepen(text: &str, syntax: Syntax, rng: &mut StdRng) -> String {
             format!("deep = {}1{}\n", "[".repeat(depth), "]".repeat(depth))
         }
         Syntax::Toml => format!("deep = {}1{}\n", "{ a = ".repeat(depth), " }".repeat(depth)),
+        Syntax::Yaml => match rng.random_range(0..3) {
+            0 => format!("deep: {}1{}\n", "[".repeat(depth), "]".repeat(depth)),
+            1 => format!("deep: {}1{}\n", "{a: ".repeat(depth), "}".repeat(depth)),
+            _ => ALIAS_BOMB.to_owned(),
+        },
+        Syntax::Lines => format!("{}\n", "v 1e38 -1e38 3.4e38\n".repeat(depth.min(5_000))),
     };
     let starts: Vec<usize> = std::iter::once(0)
         .chain(text.match_indices('\n').map(|(i, _)| i + 1))
