@@ -26,6 +26,7 @@ mod depth_estimation;
 mod foundation_errors;
 mod fuzz;
 mod hostile_input;
+mod hostile_readers;
 mod measurement_no_alloc;
 mod noisy_camera_loop;
 mod obstacle_scenario;
