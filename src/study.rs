@@ -178,6 +178,10 @@ pub fn standard_families() -> Vec<Family> {
 /// start a job of months.
 pub const MAX_DRAWS_PER_FAMILY: usize = 100_000;
 
+/// The most points per axis of a [`Study::slice`]: 201 × 201 runs are as many as a study of 1 250 draws per family,
+/// minutes on two cores; a thousand per axis (a million runs) would take most of a day.
+pub const MAX_SLICE_POINTS: usize = 201;
+
 /// A study: a scenario, families, `K` draws per family and a seed.
 #[derive(Debug, Clone)]
 pub struct Study<'a> {
@@ -459,7 +463,7 @@ impl<'a> Study<'a> {
     ///
     /// # Errors
     /// [`StudyError::InvalidParameter`] for a joint index beyond the robot's joints, non-finite or negative
-    /// half-widths or fewer than 2 points; model failures.
+    /// half-widths, fewer than 2 points or more than [`MAX_SLICE_POINTS`]; model failures.
     pub fn slice(
         &self,
         joints: (usize, usize),
@@ -504,8 +508,8 @@ impl<'a> Study<'a> {
                 return invalid("slice half-width", width, "finite and > 0");
             }
         }
-        if !(2..=1000).contains(&points) {
-            return invalid("slice points", points as f64, "2 to 1000");
+        if !(2..=MAX_SLICE_POINTS).contains(&points) {
+            return invalid("slice points", points as f64, "2 to 201");
         }
         let offsets = |half: f64| -> Vec<f64> {
             (0..points)
