@@ -217,13 +217,13 @@ impl<const N: usize> StackController<N> {
         result: &ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
         // D29: while a restart recentres joints, nothing is pushed or put back.
-        if let Some((joints, since)) = self.recentring {
+        if let Phase::Recentring { joints, since } = self.phase {
             if time - since < self.parameters.restart_timeout
                 && !self.recentred(&joints, prediction.q)
             {
                 return Ok(None);
             }
-            self.recentring = None;
+            self.phase = Phase::Sequencing;
         }
         // With no task out, the next push waits for the full method's threshold when tasks may be removed (robust
         // rule), the paper's otherwise; a removed task is tested for re-insertion at the paper's, once the stack has

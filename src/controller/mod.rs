@@ -140,6 +140,33 @@ pub use events::{
 };
 pub use parameters::{ControllerError, ControllerParameters, DecisionRule, RemovalCriterion};
 
+/// The controller's phase: what it may do at the next iteration ([theory §6.6](crate::theory#s6-6)). Its
+/// transitions are made in one place each: Sequencing → Recentring by the restart (D29, `recovery.rs`),
+/// Recentring → Sequencing once the recentred joints are back in their centre band or the restart's timeout has passed
+/// (D29, `insertion.rs`), and Sequencing or Recentring → Held by the hold before a hard limit (D13, `removal.rs`),
+/// which is final.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase<const N: usize> {
+    /// Tasks are pushed, removed and put back (D5–D7, D28), the reserve task may escape (D23, D24).
+    Sequencing,
+    /// D29: the sequence has restarted; the joints that were locked (`joints`) are driven to the middle of their range
+    /// in the first task's null space since `since` (s), and nothing is pushed or put back until they are there.
+    Recentring {
+        /// The recentred joints.
+        joints: [bool; N],
+        /// When the restart began (s).
+        since: f64,
+    },
+    /// D13: every task has been dropped before a hard limit (the highest-priority one `task`, at `since`): the law is
+    /// the avoidance alone, for good.
+    Held {
+        /// The highest-priority task dropped.
+        task: usize,
+        /// When (s).
+        since: f64,
+    },
+}
+
 /// The stack controller's state: which tasks are stacked, pending and removed, the transition memory, the event log.
 /// Its buffers are allocated once, at construction; an iteration without event allocates nothing. An event appends to
 /// the event log (preallocated for four events per task, growing beyond), and a removal copies the criteria into its
@@ -166,16 +193,14 @@ pub struct StackController<const N: usize> {
     refused_since: Option<f64>,
     /// The last re-insertion test: (task, predicted cost, threshold).
     last_reinsertion_test: Option<(usize, f64, f64)>,
-    /// D13: removals stopped after a fallback, except as a last resort.
+    /// Where the controller is in its sequence: sequencing, recentring after a restart, or held.
+    phase: Phase<N>,
+    /// D13: removals stopped after a fallback, except as a last resort; orthogonal to the phase (a restart keeps it).
     fallback: bool,
-    /// The hold (highest-priority task dropped, time), once every task was dropped before a hard limit.
-    held: Option<(usize, f64)>,
     /// The joint limits given to [`Self::with_joint_limits`]: the lock of D26, the restart of D29.
     limits: Option<JointLimits<N>>,
     /// D29: whether the sequence has been restarted (once per run).
     restarted: bool,
-    /// D29: while the restart recentres joints, which ones and since when.
-    recentring: Option<([bool; N], f64)>,
     change_pending: bool,
     last_change_time: f64,
     /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
@@ -269,10 +294,9 @@ impl<const N: usize> StackController<N> {
             refused_since: None,
             last_reinsertion_test: None,
             fallback: false,
-            held: None,
+            phase: Phase::Sequencing,
             limits: None,
             restarted: false,
-            recentring: None,
             change_pending: false,
             last_change_time: 0.0,
             early_push_reference: None,
@@ -388,12 +412,12 @@ impl<const N: usize> StackController<N> {
     /// `true` once the controller has held before a hard limit ([`ControllerParameters::hold_before_limit`], D13): every
     /// task is dropped for good, and the velocity is the avoidance's alone.
     pub fn is_held(&self) -> bool {
-        self.held.is_some()
+        matches!(self.phase, Phase::Held { .. })
     }
 
     /// What the controller waits for (to explain a run that did not converge in its budget).
     pub fn status(&self) -> ControllerStatus {
-        if let Some((task, time)) = self.held {
+        if let Phase::Held { task, since: time } = self.phase {
             ControllerStatus::Held { task, time }
         } else if let Some(&task) = self.removed.first() {
             let last_test = match self.last_reinsertion_test {
@@ -525,7 +549,7 @@ impl<const N: usize> StackController<N> {
             self.note_law_jump(iteration, &output, &velocity_sent_before);
         }
         let mut result = self.summarize(&output);
-        let was_recentring = self.recentring.is_some();
+        let was_recentring = matches!(self.phase, Phase::Recentring { .. });
         let event = match self.decide(
             law,
             tasks,
@@ -545,7 +569,7 @@ impl<const N: usize> StackController<N> {
                 return Err(error);
             }
         };
-        if event.is_none() && was_recentring && self.recentring.is_none() {
+        if event.is_none() && was_recentring && !matches!(self.phase, Phase::Recentring { .. }) {
             // D29: the recentring term leaves the law at the next step, which starts a transition from the velocity
             // sent now (D1), as a stack change does.
             self.change_pending = true;

@@ -117,7 +117,10 @@ impl<const N: usize> StackController<N> {
         }
         let first = *self.stacked.first()?;
         self.restarted = true;
-        self.recentring = Some((locked, time));
+        self.phase = Phase::Recentring {
+            joints: locked,
+            since: time,
+        };
         self.escaped = false;
         self.next_push = first + 1;
         // One change: every task taken out is logged at this iteration, in priority order.
@@ -156,7 +159,10 @@ impl<const N: usize> StackController<N> {
         law: &ControlLaw,
         cost: Option<&'a dyn Cost<N>>,
     ) -> Option<RecentringCost<'a, N>> {
-        let ((joints, _), limits, avoidance) = (self.recentring?, self.limits.as_ref()?, cost?);
+        let Phase::Recentring { joints, .. } = self.phase else {
+            return None;
+        };
+        let (limits, avoidance) = (self.limits.as_ref()?, cost?);
         let kappa = law.avoidance_gain();
         if kappa <= 0.0 {
             return None;

@@ -29,7 +29,7 @@ impl<const N: usize> StackController<N> {
         result: &mut ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
         self.criteria.clear();
-        if self.held.is_some() {
+        if matches!(self.phase, Phase::Held { .. }) {
             return Ok(None);
         }
         if let Some(kind) = self.escape_early(law, tasks, output, iteration, time) {
@@ -59,7 +59,7 @@ impl<const N: usize> StackController<N> {
         // The direction of the danger: ∇h(q), or ∇h(q̂) while the robot is still outside every band (robust rule). While
         // a restart recentres joints (D29) the law's gradient carries the recentring term: ∇h is evaluated apart.
         let mut gradient = *output.gradient();
-        if self.recentring.is_some() {
+        if matches!(self.phase, Phase::Recentring { .. }) {
             cost.value_and_gradient(q, &mut gradient)?;
         }
         let danger = if gradient.norm() > 0.0 || self.parameters.rule == DecisionRule::Paper {
@@ -181,7 +181,10 @@ impl<const N: usize> StackController<N> {
             let at = self.removed.partition_point(|&t| t < task);
             self.removed.insert(at, task);
         }
-        self.held = Some((first, time));
+        self.phase = Phase::Held {
+            task: first,
+            since: time,
+        };
         self.record(StackEvent {
             iteration,
             time,
