@@ -68,6 +68,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+mod overrides;
 mod text_bounds;
 
 pub use text_bounds::{MAX_SCENARIO_BYTES, MAX_SCENARIO_DEPTH};
