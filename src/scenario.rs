@@ -68,10 +68,14 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+mod generate;
 mod overrides;
 mod text_bounds;
+mod zoo;
 
+pub use generate::{generate, ArmSpec, MIN_GOAL_SINGULAR_VALUE};
 pub use text_bounds::{MAX_SCENARIO_BYTES, MAX_SCENARIO_DEPTH};
+pub use zoo::{ExcludedArm, Zoo};
 
 /// The records [`Scenario::run`] keeps at most (65 536, a minute of a 1 kHz loop; a few tens of megabytes): every
 /// record of a shorter run, evenly spaced ones of a longer one ([`Decimated`]).
