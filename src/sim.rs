@@ -610,6 +610,18 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// Every [`Outcome::name`], in the order of the variants.
+    pub const NAMES: [&'static str; 8] = [
+        "converged",
+        "off_goal",
+        "joint_limit",
+        "feature_lost",
+        "max_iterations",
+        "stalled",
+        "image_degenerate",
+        "collision",
+    ];
+
     /// The short name used in summaries: `converged`, `off_goal`, `joint_limit`, `feature_lost`, `max_iterations`,
     /// `stalled`, `image_degenerate`, `collision`.
     pub fn name(&self) -> &'static str {

@@ -41,5 +41,6 @@ mod scenarios;
 mod servo;
 mod square_target;
 mod stack_properties;
+mod study_shards;
 mod visual_task_jacobian;
 mod your_robot;
