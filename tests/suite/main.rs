@@ -37,6 +37,7 @@ mod peer_variants;
 mod real_camera_scenario;
 mod robot_kinematics;
 mod robot_urdf_errors;
+mod scenario_generate;
 mod scenarios;
 mod servo;
 mod square_target;
