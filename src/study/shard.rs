@@ -15,11 +15,26 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 /// One part of a study's draws: shard `index` of `count` runs draw `d` of every family when `d mod count = index`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "ShardFields")]
 pub struct Shard {
     /// Its index, `0 ≤ index < count`.
     index: usize,
     /// The number of shards, ≥ 1.
     count: usize,
+}
+
+/// A shard as read from a file, checked by [`Shard::new`].
+#[derive(Deserialize)]
+struct ShardFields {
+    index: usize,
+    count: usize,
+}
+
+impl TryFrom<ShardFields> for Shard {
+    type Error = ShardError;
+    fn try_from(fields: ShardFields) -> Result<Self, ShardError> {
+        Self::new(fields.index, fields.count)
+    }
 }
 
 /// Errors of shards and of their merge.

@@ -93,7 +93,7 @@ fn parts_that_are_not_the_shards_of_one_study_do_not_merge() {
         other => panic!("expected a mismatch, got {other:?}"),
     };
     assert!(reason(&[]).contains("no study"));
-    assert!(reason(&[first.clone()]).contains("shard 1/2 is missing"));
+    assert!(reason(std::slice::from_ref(&first)).contains("shard 1/2 is missing"));
     assert!(reason(&[first.clone(), first.clone()]).contains("given twice"));
     let other_seed = Study::new(&scenario, families()[..1].to_vec(), 2, 4).unwrap();
     assert!(reason(&[first.clone(), shard(1, 2, &other_seed)]).contains("is not of the study"));
@@ -130,6 +130,19 @@ fn shards_are_written_i_slash_n_and_checked() {
         .unwrap();
     let text = serde_json::to_string(&result).unwrap();
     assert!(StudyResult::from_json(&text, "study.json").is_ok());
+    // A shard index beyond its count, as a hand-edited file could have it, is refused when read.
+    let shard = Study::new(&scenario, families()[..1].to_vec(), 1, 3)
+        .unwrap()
+        .with_shard(Shard::new(0, 2).unwrap())
+        .run()
+        .unwrap();
+    let text_of_shard = serde_json::to_string(&shard).unwrap();
+    assert!(text_of_shard.contains("\"shard\":{\"index\":0,\"count\":2}"));
+    let beyond = text_of_shard.replace("\"index\":0,\"count\":2", "\"index\":5,\"count\":2");
+    assert!(matches!(
+        StudyResult::from_json(&beyond, "study.json"),
+        Err(ShardError::File { .. })
+    ));
     let renamed = text.replacen("\"outcome\":\"", "\"outcome\":\"flying_", 1);
     match StudyResult::from_json(&renamed, "study.json") {
         Err(ShardError::File { reason, .. }) => {
