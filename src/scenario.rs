@@ -31,6 +31,9 @@
 //! | `stack_gradient` | the four tasks pushed one by one | projected gradient | no |
 //! | `stack_controller` | the four tasks pushed one by one | projected gradient | yes (the full method) |
 //!
+//! [`generate`] writes the paper's scenario for any arm (a URDF with base and tool links and a camera mount): the zoo
+//! of real arms of `assets/zoo.toml` ([`Zoo`]) runs the study on every arm of `example-robot-data` that way.
+//!
 //! ```
 //! let scenario = servostack::scenario::Scenario::from_toml_str(
 //!     include_str!("../assets/scenarios/paper_afma6.toml"), None)?;

@@ -159,12 +159,13 @@ fn generate_for<const N: usize>(
     let q_goal = JointVector::<N>::from_column_slice(&goal);
     let view = experiment.scene.observe(&mut workspace, &q_goal)?;
     let jacobian = DMatrix::from_column_slice(6, N, view.camera_jacobian.as_slice());
-    let smallest = jacobian
-        .singular_values()
+    let singular_values = jacobian.singular_values();
+    let smallest = singular_values
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    if !(smallest >= MIN_GOAL_SINGULAR_VALUE) {
+    // A non-finite singular value (a Jacobian the kinematics should never give) is refused too.
+    if singular_values.iter().any(|s| !s.is_finite()) || smallest < MIN_GOAL_SINGULAR_VALUE {
         return Err(invalid(
             "desired.joints",
             format!(
