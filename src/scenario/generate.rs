@@ -1,29 +1,4 @@
-//! The paper's scenario for any arm: a generator from a robot (a URDF chain with its base and tool links and a camera
-//! mount, or a built-in arm) to the limit-avoidance story of `assets/scenarios/ur5e_limits.toml` on that arm
-//! ([theory §9](crate::theory#s9)), for the zoo of real arms ([`super::Zoo`]).
-//!
-//! What is taken from `ur5e_limits.toml` as it is: the camera (600 px, 640 × 480), the 0.2 × 0.1 m target, the pose
-//! the camera sees it from at the goal (0.45 m in front, tilted by 15° about the camera x axis), the tasks, the
-//! avoidance, the controller and the simulation. What is made for the arm, in this order:
-//!
-//! 1. **Limits**: the chain's own, an unlimited (continuous) joint given `[−π, π]` (the joint-limit cost needs finite
-//!    limits); written out in `robot.joint_limits`.
-//! 2. **Goal** `q*`: the middle of every joint's range (0 for a continuous joint), or the arm's `goal_joints`. A goal
-//!    where the camera Jacobian `cVe · eJe` loses rank (a stretched elbow, aligned wrist axes) is refused: the
-//!    classical law has no meaning there.
-//! 3. **Target**: placed so that the goal camera sees it at the template's pose; the desired image is its projection at
-//!    the goal ([`crate::sim::Scene::with_target_seen_from`]).
-//! 4. **Start**: the goal with one joint turned by 1.6 rad (or 1.2, 0.8, either sign: the first that keeps the
-//!    start inside the limits with the target in view), the joint whose motion turns the camera most purely about its
-//!    optical axis at the goal — the paper's situation, where the classical law's straight image paths back the camera
-//!    up.
-//! 5. **A limit the classical law meets**: the classical law is run from the start with those limits. If it already
-//!    ends at a limit, they stay. Otherwise, the joint that strays farthest outside the span of its start and goal
-//!    values is restricted on that side, at 0.7 of its excursion (then 0.5, 0.3 until the classical law meets it), with
-//!    a range of 11 times the limit's distance to the span (as the UR5e's elbow: 0.05 rad from the goal, 0.55 rad of
-//!    range), within the chain's own limits.
-//!
-//! The scenario's `description` says which joint was turned and which limit was set, and how the classical law ended.
+//! The paper's scenario for any arm: [`generate`] (re-exported by [`crate::scenario`]).
 
 use super::{
     invalid, with_joint_count, ForJointCount, JointLimitsSpec, RobotSpec, RunKind, Scenario,
@@ -69,8 +44,32 @@ pub struct ArmSpec {
     pub note: String,
 }
 
-/// The paper's scenario for `arm` (see the [module docs](self)); relative paths of its robot are resolved against
-/// `base_dir` and written resolved, so the scenario runs from anywhere.
+/// The paper's scenario for `arm`: the limit-avoidance story of `assets/scenarios/ur5e_limits.toml` on that arm
+/// ([theory §9](crate::theory#s9)), for the zoo of real arms ([`super::Zoo`]). Relative paths of its robot are
+/// resolved against `base_dir` and written resolved, so the scenario runs from anywhere.
+///
+/// What is taken from `ur5e_limits.toml` as it is: the camera (600 px, 640 × 480), the 0.2 × 0.1 m target, the pose
+/// the camera sees it from at the goal (0.45 m in front, tilted by 15° about the camera x axis), the tasks, the
+/// avoidance, the controller and the simulation. What is made for the arm, in this order:
+///
+/// 1. **Limits**: the chain's own, an unlimited (continuous) joint given `[−π, π]` (the joint-limit cost needs finite
+///    limits); written out in `robot.joint_limits`.
+/// 2. **Goal** `q*`: the middle of every joint's range (0 for a continuous joint), or the arm's `goal_joints`. A goal
+///    where the camera Jacobian `cVe · eJe` loses rank (a stretched elbow, aligned wrist axes) is refused: the
+///    classical law has no meaning there.
+/// 3. **Target**: placed so that the goal camera sees it at the template's pose; the desired image is its projection at
+///    the goal ([`crate::sim::Scene::with_target_seen_from`]).
+/// 4. **Start**: the goal with one joint turned by 1.6 rad (or 1.2, 0.8, either sign: the first that keeps the
+///    start inside the limits with the target in view), the joint whose motion turns the camera most purely about its
+///    optical axis at the goal — the paper's situation, where the classical law's straight image paths back the camera
+///    up.
+/// 5. **A limit the classical law meets**: the classical law is run from the start with those limits. If it already
+///    ends at a limit, they stay. Otherwise, the joint that strays farthest outside the span of its start and goal
+///    values is restricted on that side, at 0.7 of its excursion (then 0.5, 0.3 until the classical law meets it), with
+///    a range of 11 times the limit's distance to the span (as the UR5e's elbow: 0.05 rad from the goal, 0.55 rad of
+///    range), within the chain's own limits.
+///
+/// The scenario's `description` says which joint was turned and which limit was set, and how the classical law ended.
 ///
 /// # Errors
 /// An invalid robot (unreadable URDF, unknown links, more than [`super::MAX_JOINTS`] joints), `goal_joints` of the

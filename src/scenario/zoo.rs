@@ -1,21 +1,4 @@
-//! The zoo of real arms: a manifest (`assets/zoo.toml`) naming, for each serial arm of a robot-description package
-//! (`example-robot-data`, installed by `scripts/install_zoo.sh`, never vendored), its URDF relative to the package's
-//! robots directory, base and tool links and camera mount ([`ArmSpec`]), and the package's arms left out, with why.
-//! [`Zoo::scenario`] turns an arm into the paper's scenario for it ([`generate`]).
-//!
-//! ```toml
-//! package = "example-robot-data"
-//! version = "6.0.0"
-//!
-//! [[arms]]
-//! name = "panda"
-//! robot = { urdf = "panda_description/urdf/panda.urdf", base_link = "panda_link0", tip_link = "panda_link8",
-//!           camera_mount = { translation_m = [0.0, 0.0, 0.05] } }
-//!
-//! [[excluded]]
-//! urdf = "double_pendulum_description/urdf/double_pendulum.urdf"
-//! reason = "two joints: no arm"
-//! ```
+//! The zoo of real arms: [`Zoo`] (re-exported by [`crate::scenario`]).
 
 use super::generate::{generate, ArmSpec};
 use super::{text_bounds, Scenario, ScenarioError};
@@ -32,7 +15,24 @@ pub struct ExcludedArm {
     pub reason: String,
 }
 
-/// The zoo manifest.
+/// The zoo of real arms: a manifest (`assets/zoo.toml`) naming, for each serial arm of a robot-description package
+/// (`example-robot-data`, installed by `scripts/install_zoo.sh`, never vendored), its URDF relative to the package's
+/// robots directory, base and tool links and camera mount ([`ArmSpec`]), and the package's arms left out, with why.
+/// [`Zoo::scenario`] turns an arm into the paper's scenario for it ([`generate`]).
+///
+/// ```toml
+/// package = "example-robot-data"
+/// version = "6.0.0"
+///
+/// [[arms]]
+/// name = "panda"
+/// robot = { urdf = "panda_description/urdf/panda.urdf", base_link = "panda_link0", tip_link = "panda_link8",
+///           camera_mount = { translation_m = [0.0, 0.0, 0.05] } }
+///
+/// [[excluded]]
+/// urdf = "double_pendulum_description/urdf/double_pendulum.urdf"
+/// reason = "two joints: no arm"
+/// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Zoo {

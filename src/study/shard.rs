@@ -1,19 +1,20 @@
-//! Sharding a study: a job array (a Slurm array, a CI matrix) runs the draws of one study on several machines, and
-//! [`StudyResult::merge`] combines the shards' results into those of the study run whole.
-//!
-//! Draw `d` of every family belongs to shard `d mod n` ([`Shard::contains`]): interleaved rather than in contiguous
-//! blocks, so every shard gets draws from the whole index range and a study's shards take about the same time. A
-//! draw's situation and seeds depend on its family's position and its index alone ([module docs](super)), never on
-//! the shard that runs it: a merged study has the draws, summaries and tables of the study run whole, byte for byte,
-//! except the two fields that describe the machines rather than the result — `seconds` (the merged value is the sum of
-//! the shards', the work's wall-clock time on one machine of each) and `threads` (the sum of the shards').
+//! Sharding a study: [`Shard`] and [`StudyResult::merge`] (re-exported by [`crate::study`]).
 
 use super::{summarize, DrawResult, Family, StudyResult};
 use crate::scenario::RunKind;
 use crate::sim::Outcome;
 use serde::{Deserialize, Deserializer, Serialize};
 
-/// One part of a study's draws: shard `index` of `count` runs draw `d` of every family when `d mod count = index`.
+/// One part of a study's draws ([`super::Study::with_shard`]), for a job array (a Slurm array, a CI matrix) that runs
+/// the draws of one study on several machines; [`StudyResult::merge`] combines the shards' results into those of the
+/// study run whole.
+///
+/// Draw `d` of every family belongs to shard `d mod n` ([`Shard::contains`]): interleaved rather than in contiguous
+/// blocks, so every shard gets draws from the whole index range and a study's shards take about the same time. A
+/// draw's situation and seeds depend on its family's position and its index alone ([`crate::study`]), never on
+/// the shard that runs it: a merged study has the draws, summaries and tables of the study run whole, byte for byte,
+/// except the two fields that describe the machines rather than the result — `seconds` (the merged value is the sum of
+/// the shards', the work's wall-clock time on one machine of each) and `threads` (the sum of the shards').
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "ShardFields")]
 pub struct Shard {
@@ -176,7 +177,7 @@ impl StudyResult {
     }
 
     /// The study whose shards are `parts` ([`super::Study::with_shard`]), in any order: every draw of every family
-    /// once, the summaries recomputed over them; `seconds` and `threads` the sums of the shards' (module docs).
+    /// once, the summaries recomputed over them; `seconds` and `threads` the sums of the shards' ([`Shard`]).
     ///
     /// # Errors
     /// [`ShardError::Mismatch`] when `parts` is empty, when they differ in scenario, seed, draws per family, families,
