@@ -12,11 +12,16 @@
 //! directory `scripts/install_zoo.sh` installs under the target directory); it writes per arm a directory with the
 //! study's files and the generated `scenario.toml`, and `zoo.md`, the tables of every arm (`docs/zoo.md`).
 //!
+//! Variants, for the controller's ablation and sensitivity tables (`scripts/controller_sweep.py`): `--set PATH=VALUE`
+//! sets a field of the scenario (of every arm's, with `--zoo`) by its dotted path, `--scale PATH=FACTOR` multiplies a
+//! number (its default when the file leaves it out), `--method NAME` runs only the methods named (`classical`,
+//! `stack`, `stack_gradient`, `stack_controller`).
+//!
 //! Sharding: `--shard I/N` runs only the draws `d` with `d mod N = I` of every family (of every arm), as one job of a
 //! job array, without the slice; `--merge DIR... [--out OUT]` combines the shards' directories (a study's, or a zoo
 //! run's with one directory per arm) into the files the study run whole writes (`StudyResult::merge`).
 
-use servostack::scenario::{with_joint_count, ForJointCount, Scenario, Zoo};
+use servostack::scenario::{with_joint_count, ForJointCount, RunKind, Scenario, Zoo};
 use servostack::study::{standard_families, Shard, Slice, Study, StudyError, StudyResult};
 use std::path::{Path, PathBuf};
 
@@ -36,12 +41,23 @@ struct Options {
     calib: Option<f64>,
     slice: (usize, usize),
     grid: usize,
+    changes: Vec<Change>,
+    methods: Vec<RunKind>,
+}
+
+/// A change of one field of the scenario studied (`--set`, `--scale`).
+enum Change {
+    /// The field at the path set to a TOML value.
+    Set(String, String),
+    /// The number at the path multiplied by a factor.
+    Scale(String, f64),
 }
 
 const USAGE: &str =
     "usage: convergence_domain (SCENARIO.toml | --zoo [--zoo-dir DIR] [--arm NAME]...) [--family NAME]... [--k K] \
      [--seed S] [--out DIR] [--noise PX] [--calib FRAC] [--slice J1,J2] [--grid N] [--dump FAMILY:DRAW] \
-     [--shard I/N]\n       convergence_domain --merge DIR... [--out OUT]";
+     [--shard I/N] [--set PATH=VALUE]... [--scale PATH=FACTOR]... [--method NAME]...\n       \
+     convergence_domain --merge DIR... [--out OUT]";
 
 fn parse(args: &[String]) -> Result<Options, Box<dyn std::error::Error>> {
     let mut options = Options {
@@ -60,6 +76,8 @@ fn parse(args: &[String]) -> Result<Options, Box<dyn std::error::Error>> {
         calib: None,
         slice: (0, 1),
         grid: 21,
+        changes: Vec::new(),
+        methods: Vec::new(),
     };
     let mut args = args.iter();
     while let Some(arg) = args.next() {
@@ -70,6 +88,31 @@ fn parse(args: &[String]) -> Result<Options, Box<dyn std::error::Error>> {
         };
         match arg.as_str() {
             "--family" => options.families.push(value("--family")?),
+            "--set" => {
+                let v = value("--set")?;
+                let (path, field) = v
+                    .split_once('=')
+                    .ok_or_else(|| format!("--set {v}: expected PATH=VALUE"))?;
+                options
+                    .changes
+                    .push(Change::Set(path.to_owned(), field.to_owned()));
+            }
+            "--scale" => {
+                let v = value("--scale")?;
+                let (path, factor) = v
+                    .split_once('=')
+                    .and_then(|(p, f)| Some((p, f.parse().ok()?)))
+                    .ok_or_else(|| format!("--scale {v}: expected PATH=FACTOR"))?;
+                options.changes.push(Change::Scale(path.to_owned(), factor));
+            }
+            "--method" => {
+                let v = value("--method")?;
+                let kind = RunKind::ALL
+                    .into_iter()
+                    .find(|k| k.name() == v)
+                    .ok_or_else(|| format!("--method {v}: not a method"))?;
+                options.methods.push(kind);
+            }
             "--zoo" => options.zoo = true,
             "--zoo-dir" => options.zoo_dir = Some(PathBuf::from(value("--zoo-dir")?)),
             "--arm" => options.arms.push(value("--arm")?),
@@ -201,6 +244,12 @@ fn study(
     out: &Path,
     slice: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
+    for change in &options.changes {
+        scenario = match change {
+            Change::Set(path, value) => scenario.with_field(path, value)?,
+            Change::Scale(path, factor) => scenario.with_field_scaled(path, *factor)?,
+        };
+    }
     // Measurement errors on every draw: uniform pixel noise of ±PX and an intrinsics error of ±FRAC (each draw has its
     // own noise seed). Converged then means the noise-free task errors below 1e−3 (at least); the study also counts
     // the runs whose camera ends within 2 mm / 0.2° of its goal.
@@ -235,6 +284,9 @@ fn study(
         families.retain(|f| options.families.contains(&f.name));
     }
     let mut study = Study::new(&scenario, families, options.draws, options.seed)?;
+    if !options.methods.is_empty() {
+        study = study.with_methods(&options.methods);
+    }
     if let Some((family, draw)) = &options.dump {
         // One draw as a scenario file, to rerun it with `run_scenario` and read its event log and figures.
         let mut situation =
