@@ -124,7 +124,8 @@ def main():
         parser.error("give scenario files or --zoo")
     subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "convergence_domain"], cwd=ROOT, check=True)
     binary = ROOT / "target" / "release" / "examples" / "convergence_domain"
-    targets = [[s] for s in options.scenarios]
+    # A single scenario's study also computes a slice: two points per axis keep it negligible.
+    targets = [[s, "--grid", "2"] for s in options.scenarios]
     if options.zoo:
         targets.append(["--zoo"] + [x for a in options.arm for x in ("--arm", a)])
     out = pathlib.Path(options.out) / options.kind
