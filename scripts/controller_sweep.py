@@ -137,9 +137,11 @@ def main():
         ]
     mark = 0.02 if options.kind == "ablation" else 0.03
     rows = []
-    for target in targets:
-        reference = study(binary, target, options, out / "reference", [])
-        changes = {name: study(binary, target, options, out / str(i), extra + ["--method", "stack_controller"])
+    for t, target in enumerate(targets):
+        # One directory per target: a study's files are found by walking its directory.
+        where = out / f"target{t}"
+        reference = study(binary, target, options, where / "reference", [])
+        changes = {name: study(binary, target, options, where / str(i), extra + ["--method", "stack_controller"])
                    for i, (name, extra) in enumerate(variants)}
         for scenario, (summary, draws, budget) in reference.items():
             base = full_method(summary)
