@@ -4,7 +4,8 @@
 //!
 //! `cargo run --release --example convergence_domain -- SCENARIO.toml [--family NAME]... [--k K] [--seed S]
 //! [--out DIR] [--noise PX] [--calib FRAC] [--dump FAMILY:DRAW] [--shard I/N]` (defaults: every standard family,
-//! K = 200, seed 1, DIR = `target/convergence_domain/<scenario>`). `--noise` and `--calib` add uniform pixel noise and
+//! K = 200, seed 1, DIR = `target/convergence_domain/<scenario>`; `--family feasible` adds the uniform starts whose
+//! straight joint path to the goal keeps the target in view, a family run only when named). `--noise` and `--calib` add uniform pixel noise and
 //! an intrinsics error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
 //!
 //! The zoo of real arms: `--zoo [--zoo-dir DIR] [--arm NAME]...` runs the study on the paper's scenario generated for
@@ -22,7 +23,9 @@
 //! run's with one directory per arm) into the files the study run whole writes (`StudyResult::merge`).
 
 use servostack::scenario::{with_joint_count, ForJointCount, RunKind, Scenario, Zoo};
-use servostack::study::{standard_families, Shard, Slice, Study, StudyError, StudyResult};
+use servostack::study::{
+    optional_families, standard_families, Shard, Slice, Study, StudyError, StudyResult,
+};
 use std::path::{Path, PathBuf};
 
 struct Options {
@@ -275,6 +278,8 @@ fn study(
     }
     let mut families = standard_families();
     if !options.families.is_empty() {
+        // The optional families (`feasible`) run when named.
+        families.extend(optional_families());
         for name in &options.families {
             if !families.iter().any(|f| &f.name == name) {
                 let known: Vec<_> = families.iter().map(|f| f.name.as_str()).collect();

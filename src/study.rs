@@ -36,8 +36,10 @@ use serde::{Deserialize, Serialize};
 
 mod output;
 mod shard;
+mod straight;
 mod summary;
 pub use shard::{Shard, ShardError};
+pub use straight::{straight_feasible, wilson_lower_95, STRAIGHT_PATH_SAMPLES};
 use summary::summarize;
 
 /// How many times a draw is attempted before the family is reported as unable to produce valid situations.
@@ -107,6 +109,10 @@ pub enum Perturbation {
     /// `[−π, π]`, one full turn. Only starts from which the camera sees the whole target, within the incidence bound
     /// of D27, are kept.
     Uniform,
+    /// Uniform starts ([`Self::Uniform`]) kept only when they are straight-feasible ([`straight_feasible`]): the
+    /// straight joint-space path to the goal keeps the target in the image, within the incidence bound, and the joints
+    /// inside their limits. A denominator no method defines (issue 43).
+    Feasible,
 }
 
 /// A named family of situations.
@@ -187,6 +193,12 @@ pub const MAX_DRAWS_PER_FAMILY: usize = 100_000;
 /// The most points per axis of a [`Study::slice`]: 201 × 201 runs are as many as a study of 1 250 draws per family,
 /// minutes on two cores; a thousand per axis (a million runs) would take most of a day.
 pub const MAX_SLICE_POINTS: usize = 201;
+
+/// The families run only when asked for by name: `feasible` ([`Perturbation::Feasible`]), whose draws some arms can
+/// hardly produce (the straight path of a uniform start rarely keeps the target in view: on a UR5e 2 in 200).
+pub fn optional_families() -> Vec<Family> {
+    vec![Family::new("feasible", Perturbation::Feasible)]
+}
 
 /// A study: a scenario, families, `K` draws per family and a seed.
 #[derive(Debug, Clone)]
@@ -272,6 +284,10 @@ pub struct DrawResult {
     pub draw: usize,
     /// Invalid situations rejected before this one.
     pub rejected: usize,
+    /// Whether the straight joint-space path from the start to the goal keeps the target in the image, within the
+    /// incidence bound, and the joints inside their limits ([`straight_feasible`]).
+    #[serde(default)]
+    pub straight_feasible: bool,
     /// The start configuration.
     pub start: Vec<f64>,
     /// The goal configuration.
@@ -348,8 +364,28 @@ pub struct FamilyResult {
     pub baseline_wins_at_limit: usize,
     /// Of those, draws where the full method converged too.
     pub full_method_also_converged_at_limit: usize,
+    /// Draws that are straight-feasible ([`DrawResult::straight_feasible`]).
+    pub straight_feasible: usize,
+    /// Of those, draws where the full method converged.
+    pub full_method_straight_feasible: usize,
     /// Every draw.
     pub draws: Vec<DrawResult>,
+}
+
+impl FamilyResult {
+    /// `converged/feasible (≥ bound %)`: the full method's share of the straight-feasible draws with its Wilson 95 %
+    /// lower bound ([`wilson_lower_95`]); `-` without such a draw.
+    pub fn straight_feasible_text(&self) -> String {
+        if self.straight_feasible == 0 {
+            return "-".to_owned();
+        }
+        format!(
+            "{}/{} (≥ {:.0} %)",
+            self.full_method_straight_feasible,
+            self.straight_feasible,
+            100.0 * wilson_lower_95(self.full_method_straight_feasible, self.straight_feasible)
+        )
+    }
 }
 
 /// The outcomes over a 2-D slice of starting configurations ([`Study::slice`]).
@@ -631,6 +667,13 @@ impl<'a> Study<'a> {
         for rejected in 0..MAX_ATTEMPTS {
             let scenario = family.perturbation.apply::<N>(self.scenario, &mut rng)?;
             match scenario.experiment::<N>() {
+                Ok(experiment)
+                    if family.perturbation == Perturbation::Feasible
+                        && !straight_feasible(&scenario, &experiment) =>
+                {
+                    last = "the straight path to the goal leaves the image, the incidence bound or the limits"
+                        .to_owned();
+                }
                 Ok(experiment) => return Ok((scenario, experiment, rejected)),
                 Err(ScenarioError::Invalid { field, reason }) => {
                     last = format!("{field}: {reason}");
@@ -663,6 +706,7 @@ impl<'a> Study<'a> {
         Ok(DrawResult {
             draw,
             rejected,
+            straight_feasible: straight_feasible(&scenario, &experiment),
             start: scenario.start.joints.clone(),
             goal: scenario.desired.joints.clone(),
             methods,
@@ -696,7 +740,7 @@ impl Perturbation {
                 check("rotation_deg", rotation_deg)
             }
             Self::View { max_angle_deg } => check("max_angle_deg", max_angle_deg),
-            Self::Uniform => Ok(()),
+            Self::Uniform | Self::Feasible => Ok(()),
         }
     }
 
@@ -754,7 +798,7 @@ impl Perturbation {
                     );
                 drawn.desired.camera_from_target = PoseSpec::from_isometry(&turned);
             }
-            Self::Uniform => {
+            Self::Uniform | Self::Feasible => {
                 for (i, value) in drawn.start.joints.iter_mut().enumerate() {
                     let (low, high) = match (chain.lower_limits()[i], chain.upper_limits()[i]) {
                         (low, high) if low.is_finite() && high.is_finite() => (low, high),
@@ -848,7 +892,7 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
+            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
             "removals",
             "per task",
             "fallback",
@@ -857,7 +901,8 @@ impl std::fmt::Display for StudyResult {
             "at limit",
             "worse",
             "off goal",
-            "pose"
+            "pose",
+            "straight"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -870,7 +915,7 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::StackController);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9}",
+                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
@@ -895,7 +940,8 @@ impl std::fmt::Display for StudyResult {
                     .to_string()),
                 full.map_or("-".into(), |m| m
                     .converged_within_pose_tolerance
-                    .to_string())
+                    .to_string()),
+                family.straight_feasible_text()
             )?;
         }
         writeln!(
@@ -907,7 +953,10 @@ impl std::fmt::Display for StudyResult {
              where a baseline did; at limit: of those, the draws where every baseline that converged came within \
              {} of a joint's range of a hard limit on the way (covered/of them); worse: draws where stack_gradient converged and the full method did not; off goal: \
              runs of the full method whose task errors settled with the camera away from its goal pose (not \
-             converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal",
+             converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal; \
+             straight: draws the full method converged in among the straight-feasible ones (the straight joint path to \
+             the goal keeps the target in view and the joints in their limits), with the 95 % lower confidence bound \
+             of that share",
             AT_LIMIT_MARGIN,
             POSE_TOLERANCE_M * 1e3,
             POSE_TOLERANCE_DEG
@@ -948,6 +997,7 @@ mod tests {
         DrawResult {
             draw: 0,
             rejected: 0,
+            straight_feasible: false,
             start: vec![0.0; 6],
             goal: vec![0.0; 6],
             methods,

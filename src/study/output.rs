@@ -62,8 +62,8 @@ impl StudyResult {
         for m in &first.methods {
             table.push_str(&format!(" {} |", m.method.name()));
         }
-        table.push_str(" covered | worse | off goal |\n|---|");
-        table.push_str(&"---|".repeat(first.methods.len() + 3));
+        table.push_str(" covered | worse | off goal | straight-feasible |\n|---|");
+        table.push_str(&"---|".repeat(first.methods.len() + 4));
         table.push('\n');
         for family in &self.families {
             table.push_str(&format!("| {} |", family.family.name));
@@ -78,10 +78,11 @@ impl StudyResult {
                     m.outcomes.get("off_goal").copied().unwrap_or(0).to_string()
                 });
             table.push_str(&format!(
-                " {}/{} | {} | {off_goal} |\n",
+                " {}/{} | {} | {off_goal} | {} |\n",
                 family.full_method_also_converged,
                 family.any_baseline_converged,
-                family.full_method_worse_than_stack_gradient
+                family.full_method_worse_than_stack_gradient,
+                family.straight_feasible_text()
             ));
         }
         table

@@ -81,6 +81,11 @@ pub(super) fn summarize(
             .iter()
             .filter(|d| only_at_limit(d) && converged(d, full))
             .count(),
+        straight_feasible: draws.iter().filter(|d| d.straight_feasible).count(),
+        full_method_straight_feasible: draws
+            .iter()
+            .filter(|d| d.straight_feasible && converged(d, full))
+            .count(),
         draws,
     }
 }

@@ -42,6 +42,7 @@ mod scenarios;
 mod servo;
 mod square_target;
 mod stack_properties;
+mod straight_feasible;
 mod study_shards;
 mod visual_task_jacobian;
 mod your_robot;
