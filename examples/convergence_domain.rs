@@ -162,7 +162,7 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
             eprintln!(
                 "note: {} has no filter of the measured points or no gain lower at the goal; under pixel noise the \
                  full method then chatters and ends far from the goal pose. \
-                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (README).",
+                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (docs/convergence_domain.md).",
                 options.scenario.display()
             );
         }
