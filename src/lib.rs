@@ -1,10 +1,10 @@
 //! Stacked-task visual servoing (N. Mansard and F. Chaumette): prioritised visual tasks, joint-limit avoidance, and a
 //! stack controller that removes the blocking task and puts it back later ([§6](crate::theory#s6)).
 //!
-//! - [`servo`]: the method behind one call per control period; start there.
+//! - [`servo`]: the method behind one call per control period.
 //! - Models: [`robot`], [`camera`], [`target`]. Tasks: [`feature`], [`visual_task`], [`task`].
 //! - The law: [`stack`], [`continuity`], [`law`], [`avoidance`]. The stack controller: [`controller`].
-//! - Real cameras: [`depth`], [`measurement`]. Simulation and study: [`sim`], [`scenario`], [`study`], [`report`].
+//! - Real cameras: [`depth`], [`measurement`]. Simulation, study: [`sim`], [`scenario`], [`study`], [`report`].
 //! - Foundations: [`math`], [`linalg`], [`bounds`]. Documentation: [`theory`], [`guide`].
 //!
 //! # Quick start
@@ -21,7 +21,7 @@
 //! fn main() -> Result<(), Box<dyn std::error::Error>> {
 //!     // The Afma6 gantry and its camera; the goal: a 0.2 × 0.1 m target 0.5 m ahead (`cdMo`).
 //!     let robot = builtin::afma6()?;
-//!     let intrinsics = CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0)?; // px
+//!     let intrinsics = CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0)?;
 //!     let camera = CalibratedCamera::pinhole(intrinsics);
 //!     let target = RectangleTarget::new(0.2, 0.1)?;
 //!     let goal = Isometry3::translation(0.0, 0.0, 0.5);
@@ -60,9 +60,8 @@
 //! ```
 //!
 //! Further: the guides [your robot](guide::your_robot), [reading results](guide::reading_results),
-//! [a camera loop](guide::camera_loop), [tuning](guide::tuning). The module [`theory`] defines every number the docs
-//! cite. The results (the paper's experiment, [its figure][figure], the convergence domain, performance,
-//! reliability): [`docs/`][docs] in the repository.
+//! [a camera loop](guide::camera_loop), [tuning](guide::tuning); [`theory`] defines every number the docs cite; the
+//! results (the paper's experiment and its [figure][figure], the study, performance, reliability): [`docs/`][docs].
 //!
 //! [docs]: https://github.com/servostack/servostack/tree/main/docs
 //! [figure]: https://github.com/servostack/servostack/blob/main/docs/paper_stack_controller_joints.png
