@@ -3,16 +3,35 @@
 //! cores. Prints the success table and writes `study.json` (every draw) and `summary.json` (per family and method).
 //!
 //! `cargo run --release --example convergence_domain -- SCENARIO.toml [--family NAME]... [--k K] [--seed S]
-//! [--out DIR] [--noise PX] [--calib FRAC] [--dump FAMILY:DRAW]` (defaults: every standard family, K = 200, seed 1,
-//! DIR = `target/convergence_domain/<scenario>`). `--noise` and `--calib` add uniform pixel noise and an intrinsics
-//! error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
+//! [--out DIR] [--noise PX] [--calib FRAC] [--dump FAMILY:DRAW] [--shard I/N]` (defaults: every standard family,
+//! K = 200, seed 1, DIR = `target/convergence_domain/<scenario>`). `--noise` and `--calib` add uniform pixel noise and
+//! an intrinsics error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
+//!
+//! The zoo of real arms: `--zoo [--zoo-dir DIR] [--arm NAME]...` runs the study on the paper's scenario generated for
+//! every arm of `assets/zoo.toml` (or the arms named), with the URDFs of `example-robot-data` in DIR (default: the
+//! directory `scripts/install_zoo.sh` installs under the target directory); it writes per arm a directory with the
+//! study's files and the generated `scenario.toml`, and `zoo.md`, the tables of every arm (`docs/zoo.md`).
+//!
+//! Variants, for the controller's ablation and sensitivity tables (`scripts/controller_sweep.py`): `--set PATH=VALUE`
+//! sets a field of the scenario (of every arm's, with `--zoo`) by its dotted path, `--scale PATH=FACTOR` multiplies a
+//! number (its default when the file leaves it out), `--method NAME` runs only the methods named (`classical`,
+//! `stack`, `stack_gradient`, `stack_controller`).
+//!
+//! Sharding: `--shard I/N` runs only the draws `d` with `d mod N = I` of every family (of every arm), as one job of a
+//! job array, without the slice; `--merge DIR... [--out OUT]` combines the shards' directories (a study's, or a zoo
+//! run's with one directory per arm) into the files the study run whole writes (`StudyResult::merge`).
 
-use servostack::scenario::{with_joint_count, ForJointCount, Scenario};
-use servostack::study::{standard_families, Slice, Study, StudyError, StudyResult};
-use std::path::PathBuf;
+use servostack::scenario::{with_joint_count, ForJointCount, RunKind, Scenario, Zoo};
+use servostack::study::{standard_families, Shard, Slice, Study, StudyError, StudyResult};
+use std::path::{Path, PathBuf};
 
 struct Options {
-    scenario: PathBuf,
+    scenario: Option<PathBuf>,
+    zoo: bool,
+    zoo_dir: Option<PathBuf>,
+    arms: Vec<String>,
+    shard: Option<Shard>,
+    merge: Option<Vec<PathBuf>>,
     families: Vec<String>,
     draws: usize,
     seed: u64,
@@ -22,15 +41,32 @@ struct Options {
     calib: Option<f64>,
     slice: (usize, usize),
     grid: usize,
+    changes: Vec<Change>,
+    methods: Vec<RunKind>,
+}
+
+/// A change of one field of the scenario studied (`--set`, `--scale`).
+enum Change {
+    /// The field at the path set to a TOML value.
+    Set(String, String),
+    /// The number at the path multiplied by a factor.
+    Scale(String, f64),
 }
 
 const USAGE: &str =
-    "usage: convergence_domain SCENARIO.toml [--family NAME]... [--k K] [--seed S] [--out DIR] \
-                     [--noise PX] [--calib FRAC] [--slice J1,J2] [--grid N] [--dump FAMILY:DRAW]";
+    "usage: convergence_domain (SCENARIO.toml | --zoo [--zoo-dir DIR] [--arm NAME]...) [--family NAME]... [--k K] \
+     [--seed S] [--out DIR] [--noise PX] [--calib FRAC] [--slice J1,J2] [--grid N] [--dump FAMILY:DRAW] \
+     [--shard I/N] [--set PATH=VALUE]... [--scale PATH=FACTOR]... [--method NAME]...\n       \
+     convergence_domain --merge DIR... [--out OUT]";
 
-fn parse(args: &[String]) -> Result<Options, String> {
+fn parse(args: &[String]) -> Result<Options, Box<dyn std::error::Error>> {
     let mut options = Options {
-        scenario: PathBuf::new(),
+        scenario: None,
+        zoo: false,
+        zoo_dir: None,
+        arms: Vec::new(),
+        shard: None,
+        merge: None,
         families: Vec::new(),
         draws: 200,
         seed: 1,
@@ -40,8 +76,9 @@ fn parse(args: &[String]) -> Result<Options, String> {
         calib: None,
         slice: (0, 1),
         grid: 21,
+        changes: Vec::new(),
+        methods: Vec::new(),
     };
-    let mut scenario = None;
     let mut args = args.iter();
     while let Some(arg) = args.next() {
         let mut value = |flag: &str| {
@@ -51,6 +88,36 @@ fn parse(args: &[String]) -> Result<Options, String> {
         };
         match arg.as_str() {
             "--family" => options.families.push(value("--family")?),
+            "--set" => {
+                let v = value("--set")?;
+                let (path, field) = v
+                    .split_once('=')
+                    .ok_or_else(|| format!("--set {v}: expected PATH=VALUE"))?;
+                options
+                    .changes
+                    .push(Change::Set(path.to_owned(), field.to_owned()));
+            }
+            "--scale" => {
+                let v = value("--scale")?;
+                let (path, factor) = v
+                    .split_once('=')
+                    .and_then(|(p, f)| Some((p, f.parse().ok()?)))
+                    .ok_or_else(|| format!("--scale {v}: expected PATH=FACTOR"))?;
+                options.changes.push(Change::Scale(path.to_owned(), factor));
+            }
+            "--method" => {
+                let v = value("--method")?;
+                let kind = RunKind::ALL
+                    .into_iter()
+                    .find(|k| k.name() == v)
+                    .ok_or_else(|| format!("--method {v}: not a method"))?;
+                options.methods.push(kind);
+            }
+            "--zoo" => options.zoo = true,
+            "--zoo-dir" => options.zoo_dir = Some(PathBuf::from(value("--zoo-dir")?)),
+            "--arm" => options.arms.push(value("--arm")?),
+            "--shard" => options.shard = Some(value("--shard")?.parse()?),
+            "--merge" => options.merge = Some(Vec::new()),
             "--k" => {
                 let v = value("--k")?;
                 options.draws = v.parse().map_err(|_| format!("--k {v}: not a count"))?;
@@ -95,13 +162,24 @@ fn parse(args: &[String]) -> Result<Options, String> {
                     .ok_or_else(|| format!("--dump {v}: expected FAMILY:DRAW"))?;
                 options.dump = Some((family, draw));
             }
-            path if scenario.is_none() && !path.starts_with("--") => {
-                scenario = Some(PathBuf::from(path))
-            }
-            other => return Err(format!("unexpected argument {other}; {USAGE}")),
+            path if !path.starts_with("--") => match (&mut options.merge, &options.scenario) {
+                (Some(dirs), _) => dirs.push(PathBuf::from(path)),
+                (None, None) => options.scenario = Some(PathBuf::from(path)),
+                (None, Some(_)) => {
+                    return Err(format!("unexpected argument {path}; {USAGE}").into())
+                }
+            },
+            other => return Err(format!("unexpected argument {other}; {USAGE}").into()),
         }
     }
-    options.scenario = scenario.ok_or(USAGE)?;
+    let modes = [
+        options.scenario.is_some(),
+        options.zoo,
+        options.merge.is_some(),
+    ];
+    if modes.iter().filter(|&&m| m).count() != 1 {
+        return Err(format!("give one of SCENARIO.toml, --zoo and --merge; {USAGE}").into());
+    }
     Ok(options)
 }
 
@@ -142,7 +220,36 @@ fn main() -> std::process::ExitCode {
 fn try_main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let options = parse(&args)?;
-    let mut scenario = Scenario::from_file(&options.scenario)?;
+    if let Some(dirs) = &options.merge {
+        return merge(dirs, &options);
+    }
+    if options.zoo {
+        return zoo(&options);
+    }
+    let path = options.scenario.clone().ok_or(USAGE)?;
+    let scenario = Scenario::from_file(&path)?;
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("target/convergence_domain").join(&scenario.name));
+    study(scenario, &path.display().to_string(), &options, &out, true)
+}
+
+/// The study of one scenario (with the slice and the figures when `slice` is set and the study is not sharded), its
+/// files written into `out`.
+fn study(
+    mut scenario: Scenario,
+    label: &str,
+    options: &Options,
+    out: &Path,
+    slice: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    for change in &options.changes {
+        scenario = match change {
+            Change::Set(path, value) => scenario.with_field(path, value)?,
+            Change::Scale(path, factor) => scenario.with_field_scaled(path, *factor)?,
+        };
+    }
     // Measurement errors on every draw: uniform pixel noise of ±PX and an intrinsics error of ±FRAC (each draw has its
     // own noise seed). Converged then means the noise-free task errors below 1e−3 (at least); the study also counts
     // the runs whose camera ends within 2 mm / 0.2° of its goal.
@@ -160,10 +267,9 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         {
             // The study runs the scenario as written; say what the noise-ready settings are.
             eprintln!(
-                "note: {} has no filter of the measured points or no gain lower at the goal; under pixel noise the \
-                 full method then chatters and ends far from the goal pose. \
-                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (docs/convergence_domain.md).",
-                options.scenario.display()
+                "note: {label} has no filter of the measured points or no gain lower at the goal; under pixel noise \
+                 the full method then chatters and ends far from the goal pose. \
+                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (docs/convergence_domain.md)."
             );
         }
     }
@@ -177,7 +283,10 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         }
         families.retain(|f| options.families.contains(&f.name));
     }
-    let study = Study::new(&scenario, families, options.draws, options.seed)?;
+    let mut study = Study::new(&scenario, families, options.draws, options.seed)?;
+    if !options.methods.is_empty() {
+        study = study.with_methods(&options.methods);
+    }
     if let Some((family, draw)) = &options.dump {
         // One draw as a scenario file, to rerun it with `run_scenario` and read its event log and figures.
         let mut situation =
@@ -189,7 +298,19 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
         println!("wrote {}", path.display());
         return Ok(());
     }
-    let (result, slice) = run(&study, &options)?;
+    if options.shard.is_some() || !slice {
+        // A shard has its draws alone and no slice (the merge has no slice to combine); a zoo run has no slice (it
+        // would take most of the time).
+        if let Some(shard) = options.shard {
+            study = study.with_shard(shard);
+        }
+        let result = study.run()?;
+        print!("{result}");
+        result.write_files(out)?;
+        println!("study.json and summary.json in {}", out.display());
+        return Ok(());
+    }
+    let (result, slice) = run(&study, options)?;
     print!("{result}");
     for (method, outcomes) in &slice.methods {
         let converged = outcomes.iter().filter(|&&o| o == "converged").count();
@@ -201,45 +322,198 @@ fn try_main() -> Result<(), Box<dyn std::error::Error>> {
             method.name()
         );
     }
-    let out = options
-        .out
-        .unwrap_or_else(|| PathBuf::from("target/convergence_domain").join(&scenario.name));
-    std::fs::create_dir_all(&out)?;
-    std::fs::write(out.join("study.json"), serde_json::to_string(&result)?)?;
-    let summary: Vec<_> = result
-        .families
-        .iter()
-        .map(|f| {
-            serde_json::json!({
-                "family": f.family,
-                "methods": f.methods,
-                "any_baseline_converged": f.any_baseline_converged,
-                "full_method_also_converged": f.full_method_also_converged,
-                "full_method_worse_than_stack_gradient": f.full_method_worse_than_stack_gradient,
-                "baseline_wins_at_limit": f.baseline_wins_at_limit,
-                "full_method_also_converged_at_limit": f.full_method_also_converged_at_limit,
-            })
-        })
-        .collect();
-    std::fs::write(
-        out.join("summary.json"),
-        serde_json::to_string_pretty(&serde_json::json!({
-            "scenario": result.scenario,
-            "seed": result.seed,
-            "draws_per_family": result.draws_per_family,
-            "families": summary,
-            "iterations": result.iterations,
-            "seconds": result.seconds,
-            "threads": result.threads,
-        }))?,
-    )?;
+    result.write_files(out)?;
     std::fs::write(out.join("slice.json"), serde_json::to_string(&slice)?)?;
     #[cfg(feature = "plot")]
-    figures::write(&result, &slice, &out)?;
+    figures::write(&result, &slice, out)?;
     println!(
         "study.json, summary.json, slice.json and the figures in {}",
         out.display()
     );
+    Ok(())
+}
+
+/// The zoo manifest of the repository.
+fn zoo_manifest() -> Result<Zoo, Box<dyn std::error::Error>> {
+    Ok(Zoo::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml"),
+    )?)
+}
+
+/// Where `scripts/install_zoo.sh` puts the package's robots: `<target>/zoo-venv/lib/python*/site-packages/...`.
+fn default_zoo_dir() -> Result<PathBuf, Box<dyn std::error::Error>> {
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target"));
+    let lib = target.join("zoo-venv/lib");
+    let found = std::fs::read_dir(&lib).ok().and_then(|entries| {
+        entries.filter_map(Result::ok).find_map(|entry| {
+            let robots = entry
+                .path()
+                .join("site-packages/cmeel.prefix/share/example-robot-data/robots");
+            robots.is_dir().then_some(robots)
+        })
+    });
+    found.ok_or_else(|| {
+        format!(
+            "no example-robot-data under {}: run scripts/install_zoo.sh, or give --zoo-dir",
+            lib.display()
+        )
+        .into()
+    })
+}
+
+/// The study on every arm of the zoo (or those of `--arm`): per arm a directory of files, then `zoo.md` (unless
+/// sharded). An arm whose scenario cannot be generated gets `error.txt` and a line in `zoo.md`, and fails the run.
+fn zoo(options: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let zoo = zoo_manifest()?;
+    let dir = match &options.zoo_dir {
+        Some(dir) => dir.clone(),
+        None => default_zoo_dir()?,
+    };
+    for name in &options.arms {
+        zoo.arm(name)?;
+    }
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("target/convergence_domain/zoo"));
+    let mut failed = Vec::new();
+    for arm in &zoo.arms {
+        if !options.arms.is_empty() && !options.arms.contains(&arm.name) {
+            continue;
+        }
+        let arm_out = out.join(&arm.name);
+        std::fs::create_dir_all(&arm_out)?;
+        let _ = std::fs::remove_file(arm_out.join("error.txt"));
+        println!("== {}", arm.name);
+        let outcome = Zoo::scenario(arm, &dir).map_err(Box::<dyn std::error::Error>::from);
+        let outcome = outcome.and_then(|scenario| {
+            std::fs::write(arm_out.join("scenario.toml"), toml::to_string(&scenario)?)?;
+            println!("{}", scenario.description);
+            study(scenario, &arm.name, options, &arm_out, false)
+        });
+        if let Err(error) = outcome {
+            eprintln!("{}: {error}", arm.name);
+            std::fs::write(arm_out.join("error.txt"), format!("{error}\n"))?;
+            failed.push(arm.name.clone());
+        }
+    }
+    if options.shard.is_none() {
+        std::fs::write(out.join("zoo.md"), zoo_markdown(&zoo, &out, &options.arms)?)?;
+        println!("zoo.md in {}", out.display());
+    }
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("no study for {}", failed.join(", ")).into())
+    }
+}
+
+/// The tables of the arms of `zoo` (or of `arms`) whose directories `out` holds, in the manifest's order, from their
+/// files alone: a run whole and a merge of shards give the same text.
+fn zoo_markdown(
+    zoo: &Zoo,
+    out: &Path,
+    arms: &[String],
+) -> Result<String, Box<dyn std::error::Error>> {
+    let mut text = format!(
+        "# The zoo: the convergence domain on the arms of {} {}\n\n\
+         Written by `scripts/zoo_study.sh` (`convergence_domain --zoo`): per arm, the paper's scenario generated by \
+         `servostack::scenario::generate` (the arm, its links and camera mount in `assets/zoo.toml`), and the draws \
+         each method converged in, per family. *covered*: draws where the full method converged among those where a \
+         baseline did; *worse*: draws where `stack_gradient` converged and the full method did not; *off goal*: runs of \
+         the full method that settled away from the goal pose.\n",
+        zoo.package, zoo.version
+    );
+    for arm in &zoo.arms {
+        if !arms.is_empty() && !arms.contains(&arm.name) {
+            continue;
+        }
+        let dir = out.join(&arm.name);
+        text.push_str(&format!("\n## {}\n\n", arm.name));
+        if let Ok(error) = std::fs::read_to_string(dir.join("error.txt")) {
+            text.push_str(&format!("No study: {}\n", error.trim()));
+            continue;
+        }
+        let path = dir.join("study.json");
+        let result = StudyResult::from_json(
+            &std::fs::read_to_string(&path)?,
+            &path.display().to_string(),
+        )?;
+        let scenario = Scenario::from_file(&dir.join("scenario.toml"))?;
+        text.push_str(&format!(
+            "{} joints. {}\n\n{} draws per family, seed {}.\n\n{}",
+            scenario.joint_count()?,
+            scenario.description,
+            result.draws_per_family,
+            result.seed,
+            result.markdown_table()
+        ));
+    }
+    Ok(text)
+}
+
+/// Merges the shards' directories: each holds `study.json` (one study) or one directory per arm (a zoo run).
+fn merge(dirs: &[PathBuf], options: &Options) -> Result<(), Box<dyn std::error::Error>> {
+    let first = dirs
+        .first()
+        .ok_or_else(|| format!("--merge needs the shards' directories; {USAGE}"))?;
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("target/convergence_domain/merged"));
+    let read = |dir: &Path| -> Result<StudyResult, Box<dyn std::error::Error>> {
+        let path = dir.join("study.json");
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        Ok(StudyResult::from_json(&text, &path.display().to_string())?)
+    };
+    if first.join("study.json").is_file() {
+        let parts = dirs
+            .iter()
+            .map(|d| read(d))
+            .collect::<Result<Vec<_>, _>>()?;
+        let merged = StudyResult::merge(&parts)?;
+        print!("{merged}");
+        merged.write_files(&out)?;
+        println!("merged study.json and summary.json in {}", out.display());
+        return Ok(());
+    }
+    // A zoo run: the arms of the manifest that the first shard has, each merged over the shards.
+    let zoo = zoo_manifest()?;
+    let mut arms = Vec::new();
+    for arm in &zoo.arms {
+        let arm_dir = first.join(&arm.name);
+        if !arm_dir.is_dir() {
+            continue;
+        }
+        arms.push(arm.name.clone());
+        let arm_out = out.join(&arm.name);
+        std::fs::create_dir_all(&arm_out)?;
+        if let Ok(error) = std::fs::read_to_string(arm_dir.join("error.txt")) {
+            std::fs::write(arm_out.join("error.txt"), error)?;
+            continue;
+        }
+        std::fs::copy(arm_dir.join("scenario.toml"), arm_out.join("scenario.toml"))?;
+        let parts = dirs
+            .iter()
+            .map(|d| read(&d.join(&arm.name)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let merged = StudyResult::merge(&parts)?;
+        println!("== {}", arm.name);
+        print!("{merged}");
+        merged.write_files(&arm_out)?;
+    }
+    if arms.is_empty() {
+        return Err(format!(
+            "{} holds neither study.json nor a directory of a zoo arm",
+            first.display()
+        )
+        .into());
+    }
+    std::fs::write(out.join("zoo.md"), zoo_markdown(&zoo, &out, &arms)?)?;
+    println!("merged files and zoo.md in {}", out.display());
     Ok(())
 }
 

@@ -112,6 +112,14 @@ pub const PERIOD_S: PhysicalRange = PhysicalRange {
     text: "finite, within [1e-6, 60] s",
 };
 
+/// Depths and target sizes (m): a micrometre to a kilometre. Below, a target images to a fraction of a pixel and an
+/// interaction matrix's `1/Z` terms reach a million per metre; above, nothing of [`LENGTH_M`] is that far.
+pub const DEPTH_M: PhysicalRange = PhysicalRange {
+    low: 1e-6,
+    high: 1e3,
+    text: "finite, within [1e-6, 1000] m",
+};
+
 /// Focal lengths (px). A pixel-sized focal length is already a fisheye of about 180°; a million pixels is a
 /// telescope on a gigapixel sensor. A value outside is a unit error (metres or millimetres for pixels).
 pub const FOCAL_LENGTH_PX: PhysicalRange = PhysicalRange {
@@ -159,9 +167,9 @@ pub const RATE_HZ: PhysicalRange = PhysicalRange {
     text: "finite, within [1/3600, 1e6] Hz",
 };
 
-/// The largest iteration budget of a run or draw count of a study: a billion control periods is eleven days of a
-/// 1 kHz loop, far beyond any experiment; a larger count is a typing error that would start a job of years.
-pub const MAX_ITERATIONS: usize = 1_000_000_000;
+/// The largest iteration budget of a simulated run: ten million control periods are 2.8 hours of a 1 kHz loop, and
+/// about a minute of computation; a larger count is a typing error that would start a job of hours or years.
+pub const MAX_ITERATIONS: usize = 10_000_000;
 
 /// Why [`read_capped`] read nothing.
 pub(crate) enum ReadFailure {

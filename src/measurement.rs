@@ -127,7 +127,7 @@ pub struct MeasurementParameters {
     pub between_frames: BetweenFrames,
     /// Relative error `ε` (in `[0, 0.5)`) of each of the nominal `fx, fy, cx, cy`: nominal = true · (1 ± ε).
     pub intrinsics_error_fraction: f64,
-    /// Hand-eye translation error (m, ≥ 0) for [`perturbed_eye_in_hand`].
+    /// Hand-eye translation error (m, in `[0, 1000]`) for [`perturbed_eye_in_hand`].
     pub hand_eye_translation_m: f64,
     /// Hand-eye rotation error (degrees, in `[0, 180]`) for [`perturbed_eye_in_hand`].
     pub hand_eye_rotation_deg: f64,
@@ -246,11 +246,13 @@ impl MeasurementParameters {
             })
         };
         let non_negative = |v: f64| v.is_finite() && v >= 0.0;
-        if !non_negative(self.hand_eye_translation_m) {
+        if !(non_negative(self.hand_eye_translation_m)
+            && crate::bounds::LENGTH_M.contains(self.hand_eye_translation_m))
+        {
             return invalid(
                 "hand_eye_translation_m",
                 self.hand_eye_translation_m,
-                "finite and ≥ 0 (m)",
+                "within [0, 1000] m",
             );
         }
         if !(non_negative(self.hand_eye_rotation_deg) && self.hand_eye_rotation_deg <= 180.0) {

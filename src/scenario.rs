@@ -32,6 +32,9 @@
 //! | `stack_gradient` | the four tasks pushed one by one | projected gradient | no |
 //! | `stack_controller` | the four tasks pushed one by one | projected gradient | yes (the full method) |
 //!
+//! [`generate`] writes the paper's scenario for any arm (a URDF with base and tool links and a camera mount): the zoo
+//! of real arms of `assets/zoo.toml` ([`Zoo`]) runs the study on every arm of `example-robot-data` that way.
+//!
 //! ```
 //! let scenario = servostack::scenario::Scenario::from_toml_str(
 //!     include_str!("../assets/scenarios/paper_afma6.toml"), None)?;
@@ -69,9 +72,14 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+mod generate;
+mod overrides;
 mod text_bounds;
+mod zoo;
 
+pub use generate::{generate, ArmSpec, MIN_GOAL_SINGULAR_VALUE};
 pub use text_bounds::{MAX_SCENARIO_BYTES, MAX_SCENARIO_DEPTH};
+pub use zoo::{ExcludedArm, Zoo};
 
 /// The records [`Scenario::run`] keeps at most (65 536, a minute of a 1 kHz loop; a few tens of megabytes): every
 /// record of a shorter run, evenly spaced ones of a longer one ([`Decimated`]).

@@ -398,7 +398,7 @@ impl<const N: usize> Scene<N> {
 pub struct SimulationParameters {
     /// The control period `Δt` (s), within [`PERIOD_S`].
     pub period: f64,
-    /// The iteration budget, at most [`MAX_ITERATIONS`] (10⁹).
+    /// The iteration budget, at most [`MAX_ITERATIONS`] (10⁷).
     pub max_iterations: usize,
     /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task (the noise-free
     /// errors when the camera is not exact), and has stayed so for `convergence_hold_s`.
@@ -485,7 +485,7 @@ impl SimulationParameters {
             return invalid(
                 "max_iterations",
                 self.max_iterations as f64,
-                "at most 1e9 (eleven days of a 1 kHz loop)",
+                "at most 1e7 (2.8 hours of a 1 kHz loop)",
             );
         }
         if !(self.convergence_error.is_finite() && self.convergence_error > 0.0) {
@@ -610,6 +610,18 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// Every [`Outcome::name`], in the order of the variants.
+    pub const NAMES: [&'static str; 8] = [
+        "converged",
+        "off_goal",
+        "joint_limit",
+        "feature_lost",
+        "max_iterations",
+        "stalled",
+        "image_degenerate",
+        "collision",
+    ];
+
     /// The short name used in summaries: `converged`, `off_goal`, `joint_limit`, `feature_lost`, `max_iterations`,
     /// `stalled`, `image_degenerate`, `collision`.
     pub fn name(&self) -> &'static str {

@@ -32,7 +32,13 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+mod output;
+mod shard;
+mod summary;
+pub use shard::{Shard, ShardError};
+use summary::summarize;
 
 /// How many times a draw is attempted before the family is reported as unable to produce valid situations.
 pub const MAX_ATTEMPTS: usize = 10_000;
@@ -73,7 +79,7 @@ pub enum StudyError {
 }
 
 /// How the situations of a family are drawn from the scenario.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Perturbation {
     /// Every joint of the start moved uniformly within `±translation_m` (prismatic) or `±rotation_deg` (revolute).
@@ -104,7 +110,7 @@ pub enum Perturbation {
 }
 
 /// A named family of situations.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Family {
     /// Its name in tables and files.
     pub name: String,
@@ -178,6 +184,10 @@ pub fn standard_families() -> Vec<Family> {
 /// start a job of months.
 pub const MAX_DRAWS_PER_FAMILY: usize = 100_000;
 
+/// The most points per axis of a [`Study::slice`]: 201 × 201 runs are as many as a study of 1 250 draws per family,
+/// minutes on two cores; a thousand per axis (a million runs) would take most of a day.
+pub const MAX_SLICE_POINTS: usize = 201;
+
 /// A study: a scenario, families, `K` draws per family and a seed.
 #[derive(Debug, Clone)]
 pub struct Study<'a> {
@@ -186,15 +196,24 @@ pub struct Study<'a> {
     draws: usize,
     seed: u64,
     methods: Vec<RunKind>,
+    shard: Option<Shard>,
 }
 
+/// An outcome's name: an alias that keeps serde's derive from borrowing the name from the text it reads (it reads
+/// one of [`Outcome::NAMES`]).
+type OutcomeName = &'static str;
+
 /// What one method did on one draw.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+///
+/// Read back from a study's `study.json` to merge shards ([`StudyResult::merge`]): a non-finite value, written as
+/// `null`, reads as `+∞`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MethodResult {
     /// The method.
     pub method: RunKind,
     /// The outcome's name ([`Outcome::name`]).
-    pub outcome: &'static str,
+    #[serde(deserialize_with = "shard::outcome_name")]
+    pub outcome: OutcomeName,
     /// Iterations performed.
     pub iterations: usize,
     /// Removals over the run (D6: a task taken out because the avoidance was predicted to fail; the tasks a restart
@@ -209,17 +228,21 @@ pub struct MethodResult {
     /// Whether the controller fell back to the stack with gradient (D13).
     pub fallback: bool,
     /// `max_k ‖q̇_k − q̇_{k−1}‖` (D14).
+    #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub max_velocity_step: f64,
     /// The camera's distance to its goal at the end (m).
+    #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub camera_translation_error: f64,
     /// The camera's rotation to its goal at the end (degrees).
+    #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub camera_rotation_error_deg: f64,
     /// The smallest distance of a joint to its nearest hard limit over the run, as a fraction of the joint's range.
+    #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub min_normalized_margin: f64,
     /// The configuration at the end of the run (m or rad per joint).
     pub end: Vec<f64>,
     /// The reason of a `stalled` or `max_iterations` outcome.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reason: Option<String>,
 }
 
@@ -243,7 +266,7 @@ impl MethodResult {
 pub const AT_LIMIT_MARGIN: f64 = 1e-3;
 
 /// One draw: its situation and what each method did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DrawResult {
     /// The draw's index in its family.
     pub draw: usize,
@@ -351,7 +374,10 @@ pub struct StudyResult {
     pub seed: u64,
     /// Draws per family.
     pub draws_per_family: usize,
-    /// Per family.
+    /// The part of the draws run ([`Study::with_shard`]); absent: every draw.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shard: Option<Shard>,
+    /// Per family (of a shard: over the shard's draws).
     pub families: Vec<FamilyResult>,
     /// Simulated control iterations over the study.
     pub iterations: usize,
@@ -388,6 +414,7 @@ impl<'a> Study<'a> {
             draws,
             seed,
             methods: RunKind::ALL.to_vec(),
+            shard: None,
         })
     }
 
@@ -402,7 +429,14 @@ impl<'a> Study<'a> {
         self
     }
 
-    /// Runs every draw of every family on all cores, for the joint count of the scenario's robot
+    /// Runs only the draws of `shard` ([`Shard::contains`]): one job of a job array, whose results
+    /// [`StudyResult::merge`] combines into those of the whole study.
+    pub fn with_shard(mut self, shard: Shard) -> Self {
+        self.shard = Some(shard);
+        self
+    }
+
+    /// Runs every draw (of the shard, [`Self::with_shard`]) of every family on all cores, for the joint count of the scenario's robot
     /// ([`Scenario::joint_count`], 1 to [`MAX_JOINTS`](crate::scenario::MAX_JOINTS)).
     ///
     /// The runners are generic in the joint count; they are instantiated here, in the library, once for every count,
@@ -430,6 +464,8 @@ impl<'a> Study<'a> {
         let mut iterations = 0;
         for (index, family) in self.families.iter().enumerate() {
             let draws: Vec<DrawResult> = (0..self.draws)
+                .filter(|&draw| self.shard.is_none_or(|shard| shard.contains(draw)))
+                .collect::<Vec<_>>()
                 .into_par_iter()
                 .map(|draw| self.run_draw::<N>(index, draw))
                 .collect::<Result<_, _>>()?;
@@ -438,12 +474,13 @@ impl<'a> Study<'a> {
                 .flat_map(|d| &d.methods)
                 .map(|m| m.iterations)
                 .sum::<usize>();
-            families.push(self.summarize(family, draws));
+            families.push(summarize(&self.methods, family, draws));
         }
         Ok(StudyResult {
             scenario: self.scenario.name.clone(),
             seed: self.seed,
             draws_per_family: self.draws,
+            shard: self.shard,
             families,
             iterations,
             seconds: clock.elapsed().as_secs_f64(),
@@ -459,7 +496,7 @@ impl<'a> Study<'a> {
     ///
     /// # Errors
     /// [`StudyError::InvalidParameter`] for a joint index beyond the robot's joints, non-finite or negative
-    /// half-widths or fewer than 2 points; model failures.
+    /// half-widths, fewer than 2 points or more than [`MAX_SLICE_POINTS`]; model failures.
     pub fn slice(
         &self,
         joints: (usize, usize),
@@ -504,8 +541,8 @@ impl<'a> Study<'a> {
                 return invalid("slice half-width", width, "finite and > 0");
             }
         }
-        if !(2..=1000).contains(&points) {
-            return invalid("slice points", points as f64, "2 to 1000");
+        if !(2..=MAX_SLICE_POINTS).contains(&points) {
+            return invalid("slice points", points as f64, "2 to 201");
         }
         let offsets = |half: f64| -> Vec<f64> {
             (0..points)
@@ -630,80 +667,6 @@ impl<'a> Study<'a> {
             goal: scenario.desired.joints.clone(),
             methods,
         })
-    }
-
-    fn summarize(&self, family: &Family, draws: Vec<DrawResult>) -> FamilyResult {
-        let position = |kind| self.methods.iter().position(|&m| m == kind);
-        let full = position(RunKind::StackController);
-        let stack_gradient = position(RunKind::StackGradient);
-        let converged =
-            |d: &DrawResult, i: Option<usize>| i.is_some_and(|i| d.methods[i].converged());
-        let any_baseline = |d: &DrawResult| {
-            d.methods
-                .iter()
-                .any(|m| m.method != RunKind::StackController && m.converged())
-        };
-        let only_at_limit = DrawResult::baselines_converged_only_at_limit;
-        let methods = self
-            .methods
-            .iter()
-            .enumerate()
-            .map(|(i, &method)| {
-                let results: Vec<&MethodResult> = draws.iter().map(|d| &d.methods[i]).collect();
-                let mut outcomes = std::collections::BTreeMap::new();
-                for r in &results {
-                    *outcomes.entry(r.outcome).or_insert(0) += 1;
-                }
-                MethodSummary {
-                    method,
-                    converged: results.iter().filter(|r| r.converged()).count(),
-                    draws: results.len(),
-                    outcomes,
-                    median_removals: median(results.iter().map(|r| r.removals as f64)),
-                    median_removals_of_a_task: median(
-                        results.iter().map(|r| r.max_removals_of_a_task as f64),
-                    ),
-                    max_removals_of_a_task: results
-                        .iter()
-                        .map(|r| r.max_removals_of_a_task)
-                        .max()
-                        .unwrap_or(0),
-                    fallbacks: results.iter().filter(|r| r.fallback).count(),
-                    restarts: results.iter().filter(|r| r.restart_take_outs > 0).count(),
-                    median_take_outs_of_a_task: median(
-                        results.iter().map(|r| r.max_take_outs_of_a_task as f64),
-                    ),
-                    median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
-                    converged_within_pose_tolerance: results
-                        .iter()
-                        .filter(|r| {
-                            r.converged()
-                                && r.camera_translation_error <= POSE_TOLERANCE_M
-                                && r.camera_rotation_error_deg <= POSE_TOLERANCE_DEG
-                        })
-                        .count(),
-                }
-            })
-            .collect();
-        FamilyResult {
-            family: family.clone(),
-            methods,
-            any_baseline_converged: draws.iter().filter(|d| any_baseline(d)).count(),
-            full_method_also_converged: draws
-                .iter()
-                .filter(|d| any_baseline(d) && converged(d, full))
-                .count(),
-            full_method_worse_than_stack_gradient: draws
-                .iter()
-                .filter(|d| converged(d, stack_gradient) && full.is_some() && !converged(d, full))
-                .count(),
-            baseline_wins_at_limit: draws.iter().filter(|d| only_at_limit(d)).count(),
-            full_method_also_converged_at_limit: draws
-                .iter()
-                .filter(|d| only_at_limit(d) && converged(d, full))
-                .count(),
-            draws,
-        }
     }
 }
 

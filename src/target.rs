@@ -104,9 +104,10 @@ impl RectangleTarget {
     /// A rectangle of `width` (along x of `o`) by `height` (along y of `o`), in metres, centred on the origin of `o`.
     ///
     /// # Errors
-    /// [`TargetError::DegenerateRectangle`] unless both sizes are `> 0` and within [`crate::bounds::LENGTH_M`].
+    /// [`TargetError::DegenerateRectangle`] unless both sizes are within [`crate::bounds::DEPTH_M`] (a micrometre to a
+    /// kilometre).
     pub fn new(width: f64, height: f64) -> Result<Self, TargetError> {
-        let valid = |v: f64| v > 0.0 && crate::bounds::LENGTH_M.contains(v);
+        let valid = |v: f64| crate::bounds::DEPTH_M.contains(v);
         if !(valid(width) && valid(height)) {
             return Err(TargetError::DegenerateRectangle { width, height });
         }

@@ -1,8 +1,8 @@
 //! Centred moments (\[M34\]–\[M35\], (F33)) and the normalised area `a_n` (\[M37\]–\[M39\], (F34)–(F35)).
 
 use super::{
-    positive_parameter, Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource,
-    Moments, Observation,
+    depth_parameter, positive_parameter, Feature, FeatureError, InteractionRow, InteractionRows,
+    InteractionSource, Moments, Observation,
 };
 
 /// One centred moment `s = μ_ij` (\[M34\], no `1/N` factor), `i + j ≤ 3`, with its exact row \[M35\].
@@ -80,10 +80,11 @@ impl AreaNormalization {
     /// From the desired depth `Z*` (m) and desired size `a*` (`μ20 + μ02` of the desired image, no `1/N`).
     ///
     /// # Errors
-    /// [`FeatureError::InvalidParameter`] unless both are finite and `> 0`.
+    /// [`FeatureError::InvalidParameter`] unless `Z*` is within [`DEPTH_M`](crate::bounds::DEPTH_M) and `a*` is
+    /// finite and `> 0`.
     pub fn new(z_star: f64, a_star: f64) -> Result<Self, FeatureError> {
         Ok(Self {
-            z_star: positive_parameter("Z*", z_star)?,
+            z_star: depth_parameter("Z*", z_star)?,
             a_star: positive_parameter("a*", a_star)?,
         })
     }

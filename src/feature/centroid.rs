@@ -1,8 +1,8 @@
 //! Centroid features: the paper's task e1 (\[M30\]–\[M31\], (F30)–(F31)) and ViSP's normalised centroid.
 
 use super::{
-    point_interaction, positive_parameter, AreaNormalization, Feature, FeatureError,
-    InteractionRow, InteractionRows, InteractionSource, Moments, Observation,
+    depth_parameter, point_interaction, AreaNormalization, Feature, FeatureError, InteractionRow,
+    InteractionRows, InteractionSource, Moments, Observation,
 };
 
 /// Task e1 of the paper: the centroid `s = (x_g, y_g)` of the image points, \[M30\] (F30).
@@ -22,10 +22,10 @@ impl Centroid {
     /// The centroid feature with the a priori depth `Z_g` (m) used by [`InteractionSource::PaperApprox`].
     ///
     /// # Errors
-    /// [`FeatureError::InvalidParameter`] unless `Z_g` is finite and `> 0`.
+    /// [`FeatureError::InvalidParameter`] unless `Z_g` is within [`DEPTH_M`](crate::bounds::DEPTH_M).
     pub fn new(a_priori_depth: f64) -> Result<Self, FeatureError> {
         Ok(Self {
-            z_g: positive_parameter("Z_g", a_priori_depth)?,
+            z_g: depth_parameter("Z_g", a_priori_depth)?,
         })
     }
 

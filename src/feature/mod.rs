@@ -246,13 +246,15 @@ pub enum FeatureError {
         /// `I3 = μ20 + μ02`.
         i3: f64,
     },
-    /// A parameter of a feature is out of range (non-finite or not strictly positive).
-    #[error("parameter `{name}` = {value} must be finite and strictly positive")]
+    /// A parameter of a feature is out of its range.
+    #[error("parameter `{name}` = {value} must be {expected}")]
     InvalidParameter {
         /// Name of the parameter.
         name: &'static str,
         /// Its value.
         value: f64,
+        /// Its range.
+        expected: &'static str,
     },
     /// The two point indices of a segment are equal.
     #[error("a segment needs two distinct points, got {from} and {to}")]
@@ -656,7 +658,25 @@ fn positive_parameter(name: &'static str, value: f64) -> Result<f64, FeatureErro
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
-        Err(FeatureError::InvalidParameter { name, value })
+        Err(FeatureError::InvalidParameter {
+            name,
+            value,
+            expected: "finite and strictly positive",
+        })
+    }
+}
+
+/// Checks that a depth parameter (m) is within [`DEPTH_M`](crate::bounds::DEPTH_M).
+fn depth_parameter(name: &'static str, value: f64) -> Result<f64, FeatureError> {
+    let range = crate::bounds::DEPTH_M;
+    if range.contains(value) {
+        Ok(value)
+    } else {
+        Err(FeatureError::InvalidParameter {
+            name,
+            value,
+            expected: range.text,
+        })
     }
 }
 

@@ -69,6 +69,7 @@ impl AllPoints {
             Err(FeatureError::InvalidParameter {
                 name: "point count",
                 value: count as f64,
+                expected: "from 1 to MAX_POINTS",
             })
         }
     }

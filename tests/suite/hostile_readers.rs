@@ -12,7 +12,9 @@ use servostack::measurement::MeasurementError;
 use servostack::robot::SerialChain;
 use servostack::scenario::{RunKind, Scenario, ScenarioError, DEFAULT_RECORD_CAPACITY};
 use servostack::sim::SimError;
-use servostack::study::{standard_families, Study, StudyError, MAX_DRAWS_PER_FAMILY};
+use servostack::study::{
+    standard_families, Study, StudyError, MAX_DRAWS_PER_FAMILY, MAX_SLICE_POINTS,
+};
 use std::path::{Path, PathBuf};
 
 const ROS_CALIBRATION: &str = include_str!("../data/ros_camera_info.yaml");
@@ -360,5 +362,53 @@ fn runs_and_studies_are_bounded() {
             Err(StudyError::InvalidParameter { name: "draws", .. })
         ));
     }
-    assert!(Study::new(&scenario, standard_families(), MAX_DRAWS_PER_FAMILY, 1).is_ok());
+    let study = Study::new(&scenario, standard_families(), MAX_DRAWS_PER_FAMILY, 1).unwrap();
+    // A slice of a million cells likewise.
+    assert!(matches!(
+        study.slice((0, 1), (0.1, 0.1), MAX_SLICE_POINTS + 1),
+        Err(StudyError::InvalidParameter {
+            name: "slice points",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn depths_target_sizes_and_hand_eye_errors_beyond_their_ranges_are_named() {
+    use servostack::bounds::DEPTH_M;
+    use servostack::target::{RectangleTarget, TargetError};
+    // A target of 1e−300 m and an a-priori depth of 1e−300 m were accepted and run.
+    for (from, to, named) in [
+        ("width_m = 0.2", "width_m = 1e-300", "degenerate rectangle"),
+        ("height_m = 0.1", "height_m = 2e3", "degenerate rectangle"),
+        (
+            "interaction = \"exact\"",
+            "interaction = \"exact\"\na_priori_depth_m = 1e-300",
+            "Z_g",
+        ),
+        (
+            "interaction = \"exact\"",
+            "interaction = \"exact\"\narea_depth_m = 1e308",
+            "Z*",
+        ),
+        (
+            "[simulation]",
+            "[measurement]\nhand_eye_translation_m = 1e308\n\n[simulation]",
+            "hand_eye_translation_m",
+        ),
+    ] {
+        let text = PAPER.replacen(from, to, 1);
+        assert_ne!(text, PAPER, "{from}");
+        let refused = Scenario::from_toml_str(&text, None)
+            .and_then(|s| s.run::<6>(RunKind::StackController).map(|_| ()));
+        match refused {
+            Err(error) => assert!(error.to_string().contains(named), "{to}: {error}"),
+            Ok(()) => panic!("{to}: accepted"),
+        }
+    }
+    assert!(matches!(
+        RectangleTarget::new(1e-300, 0.1),
+        Err(TargetError::DegenerateRectangle { .. })
+    ));
+    assert!(RectangleTarget::new(DEPTH_M.low, DEPTH_M.high).is_ok());
 }

@@ -1,0 +1,220 @@
+//! Recovery (D23, D24, D29): the reserve task's escape, its early form, and the restart of the sequence from rest
+//! against a limit with its recentring term.
+
+use super::*;
+
+impl<const N: usize> StackController<N> {
+    /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
+    /// reserve task has not (called with the sequence complete, no task out and the stack settled).
+    pub(super) fn escape(
+        &mut self,
+        tasks: &[TaskValue<N>],
+        iteration: usize,
+        time: f64,
+    ) -> Option<EventKind> {
+        let reserve = self.waiting_reserve()?;
+        let achieved = self
+            .stacked
+            .iter()
+            .all(|&t| tasks[t].error().norm() < self.parameters.escape_achieved_error);
+        if !achieved || tasks[reserve].error().norm() <= self.parameters.escape_error {
+            return None;
+        }
+        self.swap_in_reserve(reserve, iteration, time)
+    }
+
+    /// D24: the reserve task replaces the last task of the sequence as soon as the law of the complete stack, nothing
+    /// out, drives the reserve task's error away from zero (`e_rᵀ J_r u > r_escape ‖e_r‖²`) while it is above
+    /// `ε_escape`; not within `n_change/μ` of the last change (the law's transient after a push is not judged).
+    pub(super) fn escape_early(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        output: &ControlOutput<N>,
+        iteration: usize,
+        time: f64,
+    ) -> Option<EventKind> {
+        let reserve = self.waiting_reserve()?;
+        let parameters = &self.parameters;
+        if self.next_push < self.sequence_len()
+            || !self.removed.is_empty()
+            || time - self.last_change_time < parameters.change_transitions / law.transition_gain()
+        {
+            return None;
+        }
+        let value = &tasks[reserve];
+        let error_squared = value.error().norm_squared();
+        if error_squared.sqrt() <= parameters.escape_error {
+            return None;
+        }
+        // e_rᵀ J_r u = (J_rᵀ e_r)ᵀ u, with J_rᵀ e_r a fixed-size N-vector (no allocation).
+        let growth = value.jacobian().tr_mul(value.error()).dot(output.law()) / error_squared;
+        if growth > parameters.escape_growth_rate {
+            self.swap_in_reserve(reserve, iteration, time)
+        } else {
+            None
+        }
+    }
+
+    /// D23, D24: the reserve task takes the place of the last stacked task, once; logged as [`EventKind::Escape`].
+    pub(super) fn swap_in_reserve(
+        &mut self,
+        reserve: usize,
+        iteration: usize,
+        time: f64,
+    ) -> Option<EventKind> {
+        let last = *self.stacked.last()?;
+        self.stacked.retain(|&t| t != last);
+        self.insert_by_priority(reserve);
+        self.escaped = true;
+        self.record(StackEvent {
+            iteration,
+            time,
+            kind: EventKind::Escape,
+            task: reserve,
+            law_jump: 0.0,
+            removal: None,
+            reinsertion: None,
+        });
+        Some(EventKind::Escape)
+    }
+
+    /// D29: at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with the whole sequence stacked, nothing out and no
+    /// escape due, a joint locked at a limit and the goal not reached (the reserve task's error above `ε_escape`;
+    /// without a reserve, a stacked task's above `ε_achieved`): every task but the first is taken out in one change,
+    /// once per run, and the locked joints are recentred ([`Self::recentring_cost`]) before the sequence goes on.
+    pub(super) fn restart(
+        &mut self,
+        law: &ControlLaw,
+        tasks: &[TaskValue<N>],
+        cost: Option<&dyn Cost<N>>,
+        result: &ControllerStep<N>,
+        iteration: usize,
+        time: f64,
+    ) -> Option<EventKind> {
+        let parameters = &self.parameters;
+        if parameters.restart_rate <= 0.0
+            || self.restarted
+            || !parameters.allow_removal
+            || parameters.rule != DecisionRule::Robust
+            || self.limits.is_none()
+            || cost.is_none()
+            || law.avoidance_gain() <= 0.0
+            || result.stack_velocity_norm >= parameters.settle_velocity
+        {
+            return None;
+        }
+        let goal_missed = match self.reserve {
+            Some(reserve) => tasks[reserve].error().norm() > parameters.escape_error,
+            None => self
+                .stacked
+                .iter()
+                .any(|&t| tasks[t].error().norm() > parameters.escape_achieved_error),
+        };
+        let locked = *self.law_workspace.locked_joints();
+        if !goal_missed || !locked.contains(&true) {
+            return None;
+        }
+        let first = *self.stacked.first()?;
+        self.restarted = true;
+        self.phase = Phase::Recentring {
+            joints: locked,
+            since: time,
+        };
+        self.escaped = false;
+        self.next_push = first + 1;
+        // One change: every task taken out is logged at this iteration, in priority order.
+        let stacked = std::mem::take(&mut self.stacked);
+        for &task in &stacked[1..] {
+            self.record(StackEvent {
+                iteration,
+                time,
+                kind: EventKind::Restart,
+                task,
+                law_jump: 0.0,
+                removal: None,
+                reinsertion: None,
+            });
+        }
+        self.stacked = stacked;
+        self.stacked.truncate(1);
+        Some(EventKind::Restart)
+    }
+
+    /// D29: every recentred joint within `b_restart Δq_i` of the middle of its range.
+    pub(super) fn recentred(&self, joints: &[bool; N], q: &JointVector<N>) -> bool {
+        let Some(limits) = &self.limits else {
+            return true;
+        };
+        let band = self.parameters.restart_centre_band;
+        (0..N).all(|i| {
+            let (lower, upper) = (limits.lower()[i], limits.upper()[i]);
+            !joints[i] || (q[i] - 0.5 * (lower + upper)).abs() <= band * (upper - lower)
+        })
+    }
+
+    /// D29: while a restart recentres joints, the cost whose gradient the law descends.
+    pub(super) fn recentring_cost<'a>(
+        &self,
+        law: &ControlLaw,
+        cost: Option<&'a dyn Cost<N>>,
+    ) -> Option<RecentringCost<'a, N>> {
+        let Phase::Recentring { joints, .. } = self.phase else {
+            return None;
+        };
+        let (limits, avoidance) = (self.limits.as_ref()?, cost?);
+        let kappa = law.avoidance_gain();
+        if kappa <= 0.0 {
+            return None;
+        }
+        let weight = self.parameters.restart_rate / kappa;
+        Some(RecentringCost {
+            avoidance,
+            centre: (limits.lower() + limits.upper()) * 0.5,
+            weights: JointVector::from_fn(|i, _| if joints[i] { weight } else { 0.0 }),
+        })
+    }
+}
+
+/// D29: the avoidance cost `h` with the restart's recentring term in its gradient only,
+/// `∇h + W (q − q̄)` with `W = diag(k_restart/κ)` over the recentred joints and `q̄` the middle of each range: the law's
+/// term `−κ P^A_n (∇h + W (q − q̄))` moves each recentred joint towards `q̄` at the rate `k_restart`, within the stack's
+/// null space. Its value is `h` alone: the controller's decisions (removal, re-insertion, prediction) see the
+/// avoidance cost, not the recentring.
+pub(super) struct RecentringCost<'a, const N: usize> {
+    pub(super) avoidance: &'a dyn Cost<N>,
+    pub(super) centre: JointVector<N>,
+    pub(super) weights: JointVector<N>,
+}
+
+impl<const N: usize> Cost<N> for RecentringCost<'_, N> {
+    fn value(&self, q: &JointVector<N>) -> Result<f64, CostError> {
+        self.avoidance.value(q)
+    }
+
+    fn value_and_gradient(
+        &self,
+        q: &JointVector<N>,
+        gradient: &mut JointVector<N>,
+    ) -> Result<f64, CostError> {
+        let value = self.avoidance.value_and_gradient(q, gradient)?;
+        *gradient += self.weights.component_mul(&(q - self.centre));
+        Ok(value)
+    }
+
+    fn name(&self) -> &str {
+        self.avoidance.name()
+    }
+
+    fn dominant_term(&self, q: &JointVector<N>) -> Result<&str, CostError> {
+        self.avoidance.dominant_term(q)
+    }
+
+    fn default_removal_threshold(&self) -> Option<f64> {
+        self.avoidance.default_removal_threshold()
+    }
+
+    fn forbids(&self, q: &JointVector<N>) -> bool {
+        self.avoidance.forbids(q)
+    }
+}

@@ -1,0 +1,86 @@
+//! A family's summary: per method the outcomes, medians and counts over the family's draws, and how the full method
+//! compares with its baselines on the same draws. Computed the same way for a study run whole, a shard and a merge of
+//! shards ([`StudyResult::merge`](super::StudyResult::merge)).
+
+use super::{
+    median, DrawResult, Family, FamilyResult, MethodResult, MethodSummary, POSE_TOLERANCE_DEG,
+    POSE_TOLERANCE_M,
+};
+use crate::scenario::RunKind;
+
+/// A family's summary over its draws, for the methods of the study in their order.
+pub(super) fn summarize(
+    methods: &[RunKind],
+    family: &Family,
+    draws: Vec<DrawResult>,
+) -> FamilyResult {
+    let position = |kind| methods.iter().position(|&m| m == kind);
+    let full = position(RunKind::StackController);
+    let stack_gradient = position(RunKind::StackGradient);
+    let converged = |d: &DrawResult, i: Option<usize>| i.is_some_and(|i| d.methods[i].converged());
+    let any_baseline = |d: &DrawResult| {
+        d.methods
+            .iter()
+            .any(|m| m.method != RunKind::StackController && m.converged())
+    };
+    let only_at_limit = DrawResult::baselines_converged_only_at_limit;
+    let summaries = methods
+        .iter()
+        .enumerate()
+        .map(|(i, &method)| {
+            let results: Vec<&MethodResult> = draws.iter().map(|d| &d.methods[i]).collect();
+            let mut outcomes = std::collections::BTreeMap::new();
+            for r in &results {
+                *outcomes.entry(r.outcome).or_insert(0) += 1;
+            }
+            MethodSummary {
+                method,
+                converged: results.iter().filter(|r| r.converged()).count(),
+                draws: results.len(),
+                outcomes,
+                median_removals: median(results.iter().map(|r| r.removals as f64)),
+                median_removals_of_a_task: median(
+                    results.iter().map(|r| r.max_removals_of_a_task as f64),
+                ),
+                max_removals_of_a_task: results
+                    .iter()
+                    .map(|r| r.max_removals_of_a_task)
+                    .max()
+                    .unwrap_or(0),
+                fallbacks: results.iter().filter(|r| r.fallback).count(),
+                restarts: results.iter().filter(|r| r.restart_take_outs > 0).count(),
+                median_take_outs_of_a_task: median(
+                    results.iter().map(|r| r.max_take_outs_of_a_task as f64),
+                ),
+                median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
+                converged_within_pose_tolerance: results
+                    .iter()
+                    .filter(|r| {
+                        r.converged()
+                            && r.camera_translation_error <= POSE_TOLERANCE_M
+                            && r.camera_rotation_error_deg <= POSE_TOLERANCE_DEG
+                    })
+                    .count(),
+            }
+        })
+        .collect();
+    FamilyResult {
+        family: family.clone(),
+        methods: summaries,
+        any_baseline_converged: draws.iter().filter(|d| any_baseline(d)).count(),
+        full_method_also_converged: draws
+            .iter()
+            .filter(|d| any_baseline(d) && converged(d, full))
+            .count(),
+        full_method_worse_than_stack_gradient: draws
+            .iter()
+            .filter(|d| converged(d, stack_gradient) && full.is_some() && !converged(d, full))
+            .count(),
+        baseline_wins_at_limit: draws.iter().filter(|d| only_at_limit(d)).count(),
+        full_method_also_converged_at_limit: draws
+            .iter()
+            .filter(|d| only_at_limit(d) && converged(d, full))
+            .count(),
+        draws,
+    }
+}
