@@ -3,13 +3,13 @@
 //!
 //! - [`servo`]: the method behind one call per control period.
 //! - Models: [`robot`], [`camera`], [`target`]. Tasks: [`feature`], [`visual_task`], [`task`].
-//! - The law: [`stack`], [`continuity`], [`law`], [`avoidance`]. The stack controller: [`controller`].
+//! - The law: [`stack`], [`continuity`], [`law`], [`avoidance`]. Controller: [`controller`].
 //! - Real cameras: [`depth`], [`measurement`]. Simulation, study: [`sim`], [`scenario`], [`study`], [`report`].
-//! - Foundations: [`math`], [`linalg`], [`bounds`]. Documentation: [`theory`], [`guide`].
+//! - Basics: [`math`], [`linalg`], [`bounds`]. Documentation: [`theory`], [`guide`].
 //!
 //! # Quick start
 //!
-//! Dependencies: `servostack` and `nalgebra = "0.35"` (Rust 1.89 or later). A built-in arm and a simulated camera:
+//! Dependencies: `servostack`, `nalgebra = "0.35"` (Rust 1.89 or later). A built-in arm, a simulated camera:
 //!
 //! ```rust
 //! use nalgebra::{Isometry3, Vector6};
@@ -29,7 +29,7 @@
 //!     let config = ServoConfig::new(chain, robot.camera, camera, target, DesiredImage::Pose(goal));
 //!     let mut servo = VisualServo::new(config)?;
 //!
-//!     // Simulated world: the target seen as `goal` from `q_goal`; the robot starts away from it.
+//!     // Simulated world: the target seen as `goal` from `q_goal`; the robot starts elsewhere.
 //!     let mut workspace = KinematicsWorkspace::new();
 //!     let mut camera_pose = |q: &Vector6<f64>| {
 //!         let kinematics = robot.chain.kinematics(&mut workspace, q);
@@ -59,9 +59,9 @@
 //! }
 //! ```
 //!
-//! Further: the guides [your robot](guide::your_robot), [reading results](guide::reading_results),
-//! [a camera loop](guide::camera_loop), [tuning](guide::tuning); [`theory`] defines every number the docs cite; the
-//! results (the paper's experiment and its [figure][figure], the study, performance, reliability): [`docs/`][docs].
+//! Further: the [guides](guide) (your robot, reading results, a camera loop, tuning); [`theory`] defines every
+//! number the docs cite; results (study, performance, reliability) in [`docs/`][docs], with the paper's
+//! [figure][figure].
 //!
 //! [docs]: https://github.com/servostack/servostack/tree/main/docs
 //! [figure]: https://github.com/servostack/servostack/blob/main/docs/paper_stack_controller_joints.png
