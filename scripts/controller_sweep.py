@@ -124,7 +124,8 @@ def main():
         parser.error("give scenario files or --zoo")
     subprocess.run(["cargo", "build", "--release", "--quiet", "--example", "convergence_domain"], cwd=ROOT, check=True)
     binary = ROOT / "target" / "release" / "examples" / "convergence_domain"
-    targets = [[s] for s in options.scenarios]
+    # A single scenario's study also computes a slice: two points per axis keep it negligible.
+    targets = [[s, "--grid", "2"] for s in options.scenarios]
     if options.zoo:
         targets.append(["--zoo"] + [x for a in options.arm for x in ("--arm", a)])
     out = pathlib.Path(options.out) / options.kind
@@ -136,9 +137,11 @@ def main():
         ]
     mark = 0.02 if options.kind == "ablation" else 0.03
     rows = []
-    for target in targets:
-        reference = study(binary, target, options, out / "reference", [])
-        changes = {name: study(binary, target, options, out / str(i), extra + ["--method", "stack_controller"])
+    for t, target in enumerate(targets):
+        # One directory per target: a study's files are found by walking its directory.
+        where = out / f"target{t}"
+        reference = study(binary, target, options, where / "reference", [])
+        changes = {name: study(binary, target, options, where / str(i), extra + ["--method", "stack_controller"])
                    for i, (name, extra) in enumerate(variants)}
         for scenario, (summary, draws, budget) in reference.items():
             base = full_method(summary)
