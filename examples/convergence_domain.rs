@@ -272,7 +272,7 @@ fn study(
             eprintln!(
                 "note: {label} has no filter of the measured points or no gain lower at the goal; under pixel noise \
                  the full method then chatters and ends far from the goal pose. \
-                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (README)."
+                 assets/scenarios/paper_afma6_pixel_noise.toml is the reference scenario with both (docs/convergence_domain.md)."
             );
         }
     }

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Same-run ratios against ViSP: alternates rounds of servostack's `cargo bench --bench peer` and ViSP's `loop_bench`
 # (the shared peer harness, never copied into this repository) on this machine, and prints min and median per variant
-# for each side, their ratios, the machine and the load, as a Markdown table ready for the README.
+# for each side, their ratios, the machine and the load, as a Markdown table ready for docs/performance.md.
 #
 #   scripts/peer_ratio.sh [rounds]          # default 5 rounds
 #

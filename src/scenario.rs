@@ -1,4 +1,5 @@
-//! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9), D12).
+//! Scenario files: everything a simulated experiment needs, in TOML ([theory §9](crate::theory#s9),
+//! [D12](crate::theory#d12)).
 //!
 //! A scenario names the robot (a built-in arm, or a URDF file with base and tip links and a camera link or mount), the
 //! camera intrinsics, the target rectangle, the desired pose (a desired joint configuration and the pose of the target

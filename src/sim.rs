@@ -1,5 +1,5 @@
 //! Kinematic simulation: a robot with an eye-in-hand camera looking at a planar target, driven by the stack controller
-//! ([theory §9](crate::theory#s9), D11).
+//! ([theory §9](crate::theory#s9), [D11](crate::theory#d11)).
 //!
 //! Each iteration at time `t = k·Δt`:
 //!

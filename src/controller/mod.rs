@@ -1,5 +1,7 @@
 //! The stack controller: push tasks when the robot has settled, predict when the avoidance will fail, remove the task
-//! that blocks it, and put it back when the danger has passed ([theory §6](crate::theory#s6), (F20)–(F27), D3–D7, D13).
+//! that blocks it, and put it back when the danger has passed ([theory §6](crate::theory#s6),
+//! [(F20)](crate::theory#f20)–[(F27)](crate::theory#f27), [D3](crate::theory#d3)–[D7](crate::theory#d7),
+//! [D13](crate::theory#d13)).
 //!
 //! # One iteration ([`StackController::step`], [theory §6.5](crate::theory#s6-5))
 //!
@@ -89,7 +91,7 @@
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
 //! `u`, any task removable, re-insertion at the removal threshold with no dwell, no fallback) for comparison; its
-//! measured outcome is in the README (convergence-domain study).
+//! measured outcome is in `docs/convergence_domain.md` (the convergence-domain study).
 //!
 //! A change decided at iteration `k` takes effect at once (§6.5: "remove, τ ← t, recompute"): the law is solved again
 //! on the new stack and blended from the velocity sent at iteration `k − 1` (or the one the caller reported with

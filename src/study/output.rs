@@ -53,7 +53,7 @@ impl StudyResult {
     }
 
     /// The success table in Markdown: one row per family, the draws each method converged in, then the full method's
-    /// coverage of the draws a baseline won and its *off goal* runs (the columns of the README's tables).
+    /// coverage of the draws a baseline won and its *off goal* runs (the columns of the tables of `docs/convergence_domain.md`).
     pub fn markdown_table(&self) -> String {
         let Some(first) = self.families.first() else {
             return String::new();

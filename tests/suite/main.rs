@@ -34,6 +34,7 @@ mod obstacles;
 mod obstacles_no_alloc;
 mod paper_experiment;
 mod peer_variants;
+mod readme;
 mod real_camera_scenario;
 mod robot_kinematics;
 mod robot_urdf_errors;
