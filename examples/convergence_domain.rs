@@ -341,7 +341,7 @@ fn study(
 /// The zoo manifest of the repository.
 fn zoo_manifest() -> Result<Zoo, Box<dyn std::error::Error>> {
     Ok(Zoo::from_file(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml"),
     )?)
 }
 
@@ -446,7 +446,7 @@ fn zoo_markdown(
             &std::fs::read_to_string(&path)?,
             &path.display().to_string(),
         )?;
-        let scenario = Scenario::from_file(&dir.join("scenario.toml"))?;
+        let scenario = Scenario::from_file(dir.join("scenario.toml"))?;
         text.push_str(&format!(
             "{} joints. {}\n\n{} draws per family, seed {}.\n\n{}",
             scenario.joint_count()?,

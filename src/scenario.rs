@@ -573,7 +573,8 @@ impl Scenario {
     /// # Errors
     /// [`ScenarioError::Io`], [`ScenarioError::TooLarge`] (the file is not read), then those of
     /// [`Scenario::from_toml_str`].
-    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self, ScenarioError> {
+        let path = path.as_ref();
         let text = text_bounds::read_scenario_file(path)?;
         Self::from_toml_str(&text, path.parent())
     }

@@ -17,7 +17,7 @@
 //! ```no_run
 //! use servostack::scenario::Scenario;
 //! use servostack::study::{standard_families, Study};
-//! let scenario = Scenario::from_file("assets/scenarios/paper_afma6.toml".as_ref())?;
+//! let scenario = Scenario::from_file("assets/scenarios/paper_afma6.toml")?;
 //! let study = Study::new(&scenario, standard_families(), 200, 1)?.run()?;
 //! print!("{study}");
 //! # Ok::<(), Box<dyn std::error::Error>>(())

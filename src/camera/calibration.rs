@@ -255,7 +255,8 @@ impl CalibratedCamera {
     /// # Errors
     /// [`CalibrationError::Io`] when the file cannot be read, [`CalibrationError::TooLarge`], then those of
     /// [`Self::from_yaml_str`].
-    pub fn from_yaml_file(path: &Path) -> Result<Self, CalibrationError> {
+    pub fn from_yaml_file(path: impl AsRef<Path>) -> Result<Self, CalibrationError> {
+        let path = path.as_ref();
         let text =
             read_text_file(path, MAX_CALIBRATION_BYTES).map_err(|failure| match failure {
                 ReadFailure::Io(e) => CalibrationError::Io {

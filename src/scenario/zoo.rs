@@ -71,8 +71,8 @@ impl Zoo {
     ///
     /// # Errors
     /// [`ScenarioError::Io`], then those of [`Zoo::from_toml_str`].
-    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        Self::from_toml_str(&text_bounds::read_scenario_file(path)?)
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self, ScenarioError> {
+        Self::from_toml_str(&text_bounds::read_scenario_file(path.as_ref())?)
     }
 
     /// The arm named `name`.

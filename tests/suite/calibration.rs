@@ -21,7 +21,7 @@ fn ros_camera_info_loads() {
         CalibrationFormat::detect(ROS),
         CalibrationFormat::RosCameraInfo
     );
-    let camera = CalibratedCamera::from_yaml_file(&data("ros_camera_info.yaml")).unwrap();
+    let camera = CalibratedCamera::from_yaml_file(data("ros_camera_info.yaml")).unwrap();
     let k = camera.intrinsics;
     assert_eq!(
         (k.fx(), k.fy(), k.cx(), k.cy(), k.width(), k.height()),
@@ -36,7 +36,7 @@ fn ros_camera_info_loads() {
 #[test]
 fn opencv_file_storage_loads() {
     assert_eq!(CalibrationFormat::detect(OPENCV), CalibrationFormat::OpenCv);
-    let camera = CalibratedCamera::from_yaml_file(&data("opencv_calibration.yaml")).unwrap();
+    let camera = CalibratedCamera::from_yaml_file(data("opencv_calibration.yaml")).unwrap();
     let k = camera.intrinsics;
     assert_eq!(
         (k.fx(), k.fy(), k.cx(), k.cy(), k.width(), k.height()),
@@ -47,7 +47,7 @@ fn opencv_file_storage_loads() {
         [0.10123, -0.23456, 0.0012, -0.0009, 0.12345]
     );
     // Four coefficients: k3 = 0.
-    let four = CalibratedCamera::from_yaml_file(&data("opencv_four_coefficients.yaml")).unwrap();
+    let four = CalibratedCamera::from_yaml_file(data("opencv_four_coefficients.yaml")).unwrap();
     assert_eq!(
         four.distortion.coefficients(),
         [-0.1, 0.02, 0.001, 0.002, 0.0]
@@ -188,7 +188,7 @@ fn non_finite_and_negative_values_are_named() {
 
 #[test]
 fn unsupported_distortion_is_named() {
-    let rational = CalibratedCamera::from_yaml_file(&data("opencv_rational.yaml")).unwrap_err();
+    let rational = CalibratedCamera::from_yaml_file(data("opencv_rational.yaml")).unwrap_err();
     assert_eq!(
         rational,
         CalibrationError::Camera(CameraError::RationalDistortion { count: 8 })

@@ -155,7 +155,7 @@ fn a_singular_goal_and_a_goal_of_the_wrong_size_are_named_errors() {
 }
 
 fn manifest() -> Zoo {
-    Zoo::from_file(&Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap()
+    Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap()
 }
 
 #[test]

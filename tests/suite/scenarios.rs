@@ -15,7 +15,7 @@ fn assets() -> &'static Path {
 
 #[test]
 fn full_method_on_the_six_revolute_arm_converges() {
-    let scenario = Scenario::from_file(&assets().join("ur5e.toml")).unwrap();
+    let scenario = Scenario::from_file(assets().join("ur5e.toml")).unwrap();
     let run = scenario.run::<6>(RunKind::StackController).unwrap();
     assert_eq!(run.outcome, Outcome::Converged);
     assert_eq!(
@@ -31,7 +31,7 @@ fn full_method_on_the_six_revolute_arm_converges() {
 /// and later re-inserts that same task (by the test, not by a fallback), then converges with every task stacked, inside the
 /// limits. Returns the four runs for scenario-specific checks.
 fn limit_story<const N: usize>(file: &str, joint: usize) -> Vec<Run<N>> {
-    let scenario = Scenario::from_file(&assets().join(file)).unwrap();
+    let scenario = Scenario::from_file(assets().join(file)).unwrap();
     let experiment = scenario.experiment::<N>().unwrap();
     let runs: Vec<Run<N>> = RunKind::ALL
         .iter()
@@ -396,7 +396,7 @@ fn missing_file_is_an_io_error() {
 fn joint_kinds_name_each_joint_of_the_scenario_robot() {
     use servostack::robot::JointKind::{Continuous, Prismatic, Revolute};
     let kinds = |file: &str| {
-        Scenario::from_file(&assets().join(file))
+        Scenario::from_file(assets().join(file))
             .unwrap()
             .joint_kinds()
             .unwrap()
@@ -430,7 +430,7 @@ fn incidence_at<const N: usize>(
 /// the same run goes on. Out-of-range bounds and facing margins are refused.
 #[test]
 fn a_target_seen_too_obliquely_is_not_tracked() {
-    let mut scenario = Scenario::from_file(&assets().join("paper_afma6.toml")).unwrap();
+    let mut scenario = Scenario::from_file(assets().join("paper_afma6.toml")).unwrap();
     scenario.simulation.max_incidence_deg = 180.0;
     // The full method's facing margin must stay within the bound; the classical law's runs below do not use it.
     scenario.simulation.facing_margin_deg = 0.0;

@@ -19,7 +19,7 @@ fn package() -> PathBuf {
 }
 
 fn scenario(name: &str) -> Scenario {
-    Scenario::from_file(&data().join(format!("scenarios/{name}.toml"))).unwrap()
+    Scenario::from_file(data().join(format!("scenarios/{name}.toml"))).unwrap()
 }
 
 /// The four runs of a scenario on its 7-joint arm: each converges, and none stops at a joint limit.
