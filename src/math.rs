@@ -33,6 +33,19 @@
 use nalgebra::{Isometry3, Matrix3, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
 /// A joint-space vector of `N` joints (positions in m or rad, velocities in m/s or rad/s, gradients).
+///
+/// nalgebra's `new(x, y, …)` exists only up to six components; for any `N`, build one from an array, a slice or a
+/// function of the index:
+///
+/// ```
+/// use servostack::math::JointVector;
+/// let q = JointVector::<7>::from([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]);
+/// let same = JointVector::<7>::from_column_slice(&[0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8]);
+/// let ramp = JointVector::<7>::from_fn(|i, _| 0.1 * i as f64);
+/// assert_eq!(q, same);
+/// assert!((ramp[6] - 0.6).abs() < 1e-15);
+/// assert_eq!(JointVector::<7>::zeros().len(), 7);
+/// ```
 pub type JointVector<const N: usize> = SVector<f64, N>;
 
 /// An `N × N` joint-space matrix (projectors `P^A_i`, normal matrices).
