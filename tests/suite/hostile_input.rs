@@ -16,7 +16,7 @@ use servostack::task::{TaskError, TaskJacobian, TaskValue};
 const UR5E_SCENARIO: &str = include_str!("../../assets/scenarios/ur5e.toml");
 
 /// Runs `f` on a thread with the 2 MiB stack of spawned threads (a stack overflow there aborts the test binary).
-fn on_2_mib_thread<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+pub(crate) fn on_2_mib_thread<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
     std::thread::Builder::new()
         .stack_size(2 << 20)
         .spawn(f)

@@ -3,6 +3,7 @@
 //! read outside its folder, gave a wrong value without an error or grew without bound; each is now a named error or a
 //! bounded, correct result.
 
+use crate::hostile_input::on_2_mib_thread;
 use servostack::avoidance::{CostError, Geometry, LinkColliders, MeshPaths, MAX_COLLADA_DEPTH};
 use servostack::bounds::{FOCAL_LENGTH_PX, PIXEL_NOISE_PX};
 use servostack::camera::{
@@ -26,16 +27,6 @@ fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("servostack-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// Runs `f` on a thread with the 2 MiB stack of spawned threads (a stack overflow there aborts the test binary).
-fn on_2_mib_thread<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
-    std::thread::Builder::new()
-        .stack_size(2 << 20)
-        .spawn(f)
-        .unwrap()
-        .join()
-        .unwrap()
 }
 
 /// The collision geometry of a one-link URDF whose link's mesh is `filename`, read with `meshes`.
