@@ -23,9 +23,10 @@ import tomllib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
-# Each rule of the controller that has a switch, with the setting that switches it off (theory, the D numbers).
+# Each rule of the controller that has a switch, with the setting that switches it off (theory, the D numbers). The
+# removal itself (D6) has no switch here: a scenario's run kind sets `allow_removal`, and the full method without it
+# is the `stack_gradient` baseline of every table.
 RULES = [
-    ("D6 removal", "controller.allow_removal", "false"),
     ("D13 fallback", "controller.stall_timeout", "86400"),
     ("D24 early escape", "controller.escape_growth_rate", "inf"),
     ("D25 braking", "controller.braking_rate", "inf"),
