@@ -1,7 +1,8 @@
-//! A study's files: `study.json` (every draw), `summary.json` (per family and method) and a Markdown table, written
-//! the same way by a study run whole, by its shards and by their merge ([`StudyResult::merge`]).
+//! A study's files and tables: `study.json` (every draw), `summary.json` (per family and method), a Markdown table
+//! and the printed success table, written the same way by a study run whole, by its shards and by their merge
+//! ([`StudyResult::merge`]).
 
-use super::StudyResult;
+use super::{StudyResult, AT_LIMIT_MARGIN, POSE_TOLERANCE_DEG, POSE_TOLERANCE_M};
 use crate::scenario::RunKind;
 use std::path::Path;
 
@@ -86,5 +87,101 @@ impl StudyResult {
             ));
         }
         table
+    }
+}
+
+impl std::fmt::Display for StudyResult {
+    /// The success table: per family, the draws each method converged in; then the full method's removals and how it
+    /// compares with its baselines on the same draws.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "convergence domain of {} ({} draws per family, seed {})",
+            self.scenario, self.draws_per_family, self.seed
+        )?;
+        let Some(first) = self.families.first() else {
+            return Ok(());
+        };
+        write!(f, "{:<12}", "family")?;
+        for m in &first.methods {
+            write!(f, " {:>17}", m.method.name())?;
+        }
+        writeln!(
+            f,
+            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
+            "removals",
+            "per task",
+            "fallback",
+            "restarts",
+            "covered",
+            "at limit",
+            "worse",
+            "off goal",
+            "pose",
+            "straight"
+        )?;
+        for family in &self.families {
+            write!(f, "{:<12}", family.family.name)?;
+            for m in &family.methods {
+                write!(f, " {:>17}", format!("{}/{}", m.converged, m.draws))?;
+            }
+            let full = family
+                .methods
+                .iter()
+                .find(|m| m.method == RunKind::StackController);
+            writeln!(
+                f,
+                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
+                full.map_or("-".into(), |m| format!("{}", m.median_removals)),
+                full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
+                full.map_or("-".into(), |m| m.fallbacks.to_string()),
+                full.map_or("-".into(), |m| format!(
+                    "{} ({})",
+                    m.restarts, m.median_take_outs_of_a_task
+                )),
+                format!(
+                    "{}/{}",
+                    family.full_method_also_converged, family.any_baseline_converged
+                ),
+                format!(
+                    "{}/{}",
+                    family.full_method_also_converged_at_limit, family.baseline_wins_at_limit
+                ),
+                family.full_method_worse_than_stack_gradient,
+                full.map_or("-".into(), |m| m
+                    .outcomes
+                    .get("off_goal")
+                    .copied()
+                    .unwrap_or(0)
+                    .to_string()),
+                full.map_or("-".into(), |m| m
+                    .converged_within_pose_tolerance
+                    .to_string()),
+                family.straight_feasible_text()
+            )?;
+        }
+        writeln!(
+            f,
+            "removals: median per run of the full method; per task: median over runs of the most removals of one task; \
+             restarts: runs of the full method that restarted their sequence (in brackets, per task counting a restart's \
+             taking a task out as a removal); \
+             covered: draws where the full method converged among those \
+             where a baseline did; at limit: of those, the draws where every baseline that converged came within \
+             {} of a joint's range of a hard limit on the way (covered/of them); worse: draws where stack_gradient converged and the full method did not; off goal: \
+             runs of the full method whose task errors settled with the camera away from its goal pose (not \
+             converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal; \
+             straight: draws the full method converged in among the straight-feasible ones (the straight joint path to \
+             the goal keeps the target in view and the joints in their limits), with the 95 % lower confidence bound \
+             of that share",
+            AT_LIMIT_MARGIN,
+            POSE_TOLERANCE_M * 1e3,
+            POSE_TOLERANCE_DEG
+        )?;
+        let rate = self.iterations as f64 / self.seconds.max(1e-9);
+        writeln!(
+            f,
+            "{} control iterations in {:.1} s on {} threads ({:.0} iterations/s)",
+            self.iterations, self.seconds, self.threads, rate
+        )
     }
 }
