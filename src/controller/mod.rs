@@ -58,8 +58,8 @@
 //!      achieved while `e3` is out); otherwise a **swap** is tried: a removed task back and a stacked one out in one
 //!      transition, if the prediction with that exchange passes the same test and the exchange is not the reverse of
 //!      the last swap (**anti-cycling**: two tasks traded back and forth is chatter);
-//!    * if a removed task is still refused `stall_timeout` seconds after its first refused test, the controller
-//!      **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
+//!    * if a removed task is still refused then (by default at once; after `stall_timeout` seconds if set), the
+//!      controller **falls back** (D13): the task is put back without the test, and no task is removed for the rest of the run
 //!      on the `h_max` test — only as a **last resort**, when the prediction `max(T, 1/μ)` ahead (the time a removal
 //!      needs to act) is past a hard limit or loses the target (the fallback's law is about to fail there), at most once
 //!      per task; a task so removed comes back without the test after its dwell.

@@ -257,9 +257,42 @@ fn push_only_with_avoidance_hits_the_limit() {
     assert_continuous_at_events(&run, 0.01);
 }
 
+/// D13: by default the fallback comes at the first refused re-insertion test; with `stall_timeout` set, the refused
+/// task waits that long first (the same run until then: the controller is deterministic).
+#[test]
+fn the_fallback_comes_at_the_first_refusal_unless_a_stall_timeout_is_set() {
+    let first_fallback = |stall_timeout: f64| {
+        let run = run(
+            ControllerParameters {
+                hold_before_limit: false,
+                stall_timeout,
+                ..Default::default()
+            },
+            1.0,
+        );
+        let at = run
+            .events
+            .iter()
+            .find(|e| e.1 == EventKind::Fallback)
+            .map(|e| e.0)
+            .expect("a fallback");
+        let (_, removed_for) = run.fallback_report.expect("a fallback report");
+        (at, removed_for)
+    };
+    let (at_once, out_at_once) = first_fallback(0.0);
+    let (after_wait, out_after_wait) = first_fallback(2.0);
+    assert!(out_after_wait >= 2.0, "out for {out_after_wait} s");
+    // The wait starts at the first refusal, which the default run falls back at: 2 s = 200 periods later.
+    assert!(
+        (200..=202).contains(&(after_wait - at_once)),
+        "{at_once} then {after_wait}"
+    );
+    assert!((out_after_wait - out_at_once - 2.0).abs() < 0.025);
+}
+
 /// "reach" wants joint 0 beyond its hard limit: no configuration achieves it within the limits. The robust rule
-/// removes it once (the task whose motion points into the limit), pushes the next task while it is out, keeps it out
-/// while the prediction with it back exceeds the threshold, and after the stall timeout falls back to the stack with
+/// removes it once (the task whose motion points into the limit), pushes the next task while it is out, refuses it
+/// while the prediction with it back exceeds the threshold, and at that refusal falls back to the stack with
 /// gradient (D13) — logged with the prediction that refused it. When the fallback's law is about to cross the limit,
 /// the last resort takes "reach" out once more, and it comes back (without the test) only after its dwell, doubled by
 /// the second removal; then it stays (one last resort per task), and the limit is reached as push-only does. No
@@ -308,7 +341,11 @@ fn an_unachievable_task_is_removed_then_the_controller_falls_back_with_last_reso
     assert!(!run.events.iter().any(|e| e.1 == EventKind::Reinsert));
     let (predicted, removed_for) = run.fallback_report.expect("a fallback");
     assert!(predicted > parameters.reinsertion_ratio * limits().default_removal_threshold());
-    assert!(removed_for >= parameters.stall_timeout);
+    // The first return is tested only once the task's dwell is over.
+    assert!(
+        removed_for >= parameters.reinsertion_dwell,
+        "out for {removed_for} s"
+    );
     // After the first, a return waits at least the doubled dwell T_dwell · 2^{k−1} of the k-th removal.
     for (k, (&(removed, _), &(back, _))) in removals.iter().zip(&fallbacks).enumerate().skip(1) {
         let out_for = (back - removed) as f64 * 0.01;
@@ -778,7 +815,7 @@ fn invalid_parameters_and_task_count() {
         ("restart_rate", [f64::NAN, -1.0, f64::INFINITY]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
         ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
-        ("stall_timeout", [0.0, -1.0, f64::NAN]),
+        ("stall_timeout", [-1.0, f64::NAN, f64::INFINITY]),
     ]
     .into_iter()
     .flat_map(|(name, values)| {
