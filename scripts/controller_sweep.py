@@ -3,13 +3,15 @@
 turn) or a sensitivity table (each parameter scaled by 0.7 and 1.3), on suite scenarios or on the zoo of real arms.
 
     scripts/controller_sweep.py ablation    [--k K] [--seed S] [--family F]... [--out DIR] (SCENARIO.toml... | --zoo [--arm A]...)
-    scripts/controller_sweep.py sensitivity [same options]
+    scripts/controller_sweep.py sensitivity [same options] [--parameter NAME]...
 
 Every variant runs the full method alone (`--method stack_controller`) on the same draws as the reference run, which
-runs every method; the table gives, per scenario or arm and family, the full method's converged draws with the rule or
-parameter as shipped and the change of each variant, marking a change of at least 2 % of K (ablation: the rule
-earns its place there) or more than 3 % of K (sensitivity: a cliff), and the 95th percentile of the iterations of the
-converged runs as a share of the budget. Needs the release build of the example (built by the script through cargo).
+runs every method (the sensitivity's reference runs the full method alone too: only its count is compared);
+`--parameter` restricts the sensitivity to the parameters named; the table gives, per scenario or arm and family, the
+full method's converged draws with the rule or parameter as shipped and the change of each variant, marking a change
+of at least 2 % of K (ablation: the rule earns its place there) or more than 3 % of K (sensitivity: a cliff), and the
+95th percentile of the iterations of the converged runs as a share of the budget. Needs the release build of the
+example (built by the script through cargo).
 Standard library only.
 """
 
@@ -47,7 +49,6 @@ PARAMETERS = [
     "change_transitions",
     "reinsertion_dwell",
     "max_removals",
-    "stall_timeout",
     "escape_achieved_error",
     "escape_error",
     "early_push_ratio",
@@ -118,6 +119,7 @@ def main():
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--family", action="append", default=[])
     parser.add_argument("--out", default=str(ROOT / "target" / "controller_sweep"))
+    parser.add_argument("--parameter", action="append", default=[], choices=PARAMETERS)
     options = parser.parse_args()
     if not options.family:
         options.family = ["uniform", "goal_4cm"]
@@ -134,14 +136,17 @@ def main():
         variants = [(name, ["--set", f"{path}={value}"]) for name, path, value in RULES]
     else:
         variants = [
-            (f"{p} × {f}", ["--scale", f"controller.{p}={f}"]) for p in PARAMETERS for f in (0.7, 1.3)
+            (f"{p} × {f}", ["--scale", f"controller.{p}={f}"])
+            for p in (options.parameter or PARAMETERS)
+            for f in (0.7, 1.3)
         ]
     mark = 0.02 if options.kind == "ablation" else 0.03
     rows = []
     for t, target in enumerate(targets):
         # One directory per target: a study's files are found by walking its directory.
         where = out / f"target{t}"
-        reference = study(binary, target, options, where / "reference", [])
+        only_full = [] if options.kind == "ablation" else ["--method", "stack_controller"]
+        reference = study(binary, target, options, where / "reference", only_full)
         changes = {name: study(binary, target, options, where / str(i), extra + ["--method", "stack_controller"])
                    for i, (name, extra) in enumerate(variants)}
         for scenario, (summary, draws, budget) in reference.items():
