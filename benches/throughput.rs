@@ -79,13 +79,9 @@ fn sim_overhead(repeats: usize) {
         for _ in 0..repeats {
             let start = Instant::now();
             let run = if keep_records {
-                scenario.run_experiment(&experiment, RunKind::StackController)
+                experiment.run(&scenario.settings(), RunKind::FullMethod)
             } else {
-                scenario.run_experiment_with(
-                    &experiment,
-                    RunKind::StackController,
-                    &mut SummaryOnly,
-                )
+                experiment.run_with(&scenario.settings(), RunKind::FullMethod, &mut SummaryOnly)
             }
             .expect("run");
             let elapsed = start.elapsed().as_nanos() as f64;

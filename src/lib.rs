@@ -26,14 +26,14 @@
 //!     let target = RectangleTarget::new(0.2, 0.1)?;
 //!     let goal = Isometry3::translation(0.0, 0.0, 0.5);
 //!     let chain = robot.chain.clone();
-//!     let config = ServoConfig::new(chain, robot.camera, camera, target, DesiredImage::Pose(goal));
+//!     let config = ServoConfig::new(chain, robot.mount, camera, target, DesiredImage::Pose(goal));
 //!     let mut servo = VisualServo::new(config)?;
 //!
 //!     // Simulated world: the target seen as `goal` from `q_goal`; the robot starts elsewhere.
 //!     let mut workspace = KinematicsWorkspace::new();
 //!     let mut camera_pose = |q: &Vector6<f64>| {
 //!         let kinematics = robot.chain.kinematics(&mut workspace, q);
-//!         kinematics.map(|k| robot.camera.base_from_camera(k.base_from_tip()))
+//!         kinematics.map(|k| robot.mount.base_from_camera(k.base_from_tip()))
 //!     };
 //!     let q_goal = Vector6::new(0.0, 0.0, 0.0, 0.0, 1.2, 0.0);
 //!     let base_from_target = camera_pose(&q_goal)? * goal;
