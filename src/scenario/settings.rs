@@ -37,8 +37,8 @@ pub struct Settings {
     pub tasks: TasksSpec,
     /// The joint-limit cost's activation ratio `ρ`, the avoidance gain `κ` and the transition gain `μ`.
     pub avoidance: AvoidanceSpec,
-    /// The stack controller's thresholds (`allow_removal`, `braking_rate` and `lock_band` are set by the run kind:
-    /// only the full method removes tasks, brakes and locks).
+    /// The stack controller's thresholds. Only the full method removes tasks, brakes (`braking_rate`) and locks
+    /// (`lock_band`); `allow_removal` must stay `true` (the [`RunKind`] decides removal).
     pub controller: ControllerParameters,
     /// Period, budget, convergence threshold, image margin, velocity limits.
     pub simulation: SimulationParameters,
@@ -107,10 +107,18 @@ impl Settings {
     /// depth source are checked when a run starts).
     ///
     /// # Errors
-    /// [`ScenarioError::Invalid`] naming `tasks.adaptive_gain` or `controller`; [`ScenarioError::Simulation`] naming
-    /// the simulation parameter.
+    /// [`ScenarioError::Invalid`] naming `tasks.adaptive_gain` or `controller`, or `controller.allow_removal` when
+    /// `false` (the [`RunKind`] decides removal); [`ScenarioError::Simulation`] naming the simulation parameter.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         self.adaptive_gain()?;
+        if !self.controller.allow_removal {
+            // The run kind decides removal; a `false` here would be read by no run.
+            return Err(invalid(
+                "controller.allow_removal",
+                "the method decides it: the full method removes tasks, the three others do not (the full method \
+                 without removal is `stack_gradient`)",
+            ));
+        }
         self.controller
             .validate()
             .map_err(|e| invalid("controller", e.to_string()))?;
