@@ -25,12 +25,19 @@
 //!
 //! From one scenario, [`Scenario::run`] runs any of the paper's four [`RunKind`]s ([theory §9](crate::theory#s9)):
 //!
-//! | run | tasks | avoidance | removal |
+//! | run (in outputs) | tasks | avoidance | removal |
 //! |---|---|---|---|
-//! | `classical` | one task of six features | no | no |
-//! | `stack` | the four tasks pushed one by one | no | no |
-//! | `stack_gradient` | the four tasks pushed one by one | projected gradient | no |
-//! | `stack_controller` | the four tasks pushed one by one | projected gradient | yes (the full method) |
+//! | `Classical` (`classical`) | one task of six features | no | no |
+//! | `Stack` (`stack`) | the four tasks pushed one by one | no | no |
+//! | `StackGradient` (`stack_gradient`) | the four tasks pushed one by one | projected gradient | no |
+//! | `FullMethod` (`stack_controller`) | the four tasks pushed one by one | projected gradient | yes |
+//!
+//! A scenario is two parts, each field in one: the world — `robot`, `camera`, `target`, `desired`, `start`,
+//! `obstacles` — becomes an [`Experiment`] ([`Scenario::experiment`]), and the method — `tasks`, `avoidance`,
+//! `controller`, `simulation`, `visibility`, `measurement`, `depth` — is its [`Settings`] ([`Scenario::settings`]);
+//! `scenario.run(kind)` is `scenario.experiment()?.run(&scenario.settings(), kind)`. Without a file,
+//! [`Experiment::builder`] makes the world from the chain, mount, camera and target you hold, and
+//! [`Settings::default`] is the paper's method.
 //!
 //! [`generate`] writes the paper's scenario for any arm (a URDF with base and tool links and a camera mount): the zoo
 //! of real arms of `assets/zoo.toml` ([`Zoo`]) runs the study on every arm of `example-robot-data` that way.
