@@ -16,19 +16,20 @@
 //! use servostack::prelude::*;
 //!
 //! fn main() -> Result<(), Box<dyn std::error::Error>> {
-//!     // The Afma6 gantry, a calibrated camera on its mount; the goal: a 0.2 × 0.1 m target 0.5 m ahead (`cdMo`).
-//!     let robot = builtin::afma6()?;
+//!     // The Afma6 gantry, its camera mount, a 0.2 × 0.1 m target seen 0.5 m ahead at the goal.
+//!     let (robot, target) = (builtin::afma6()?, RectangleTarget::new(0.2, 0.1)?);
 //!     let camera = CalibratedCamera::from_yaml_file("tests/data/ros_camera_info.yaml")?;
-//!     let (target, goal) = (RectangleTarget::new(0.2, 0.1)?, Isometry3::translation(0.0, 0.0, 0.5));
-//!     let config = ServoConfig::new(robot.chain.clone(), robot.mount, camera, target, DesiredImage::Pose(goal));
+//!     let (goal, chain) = (Isometry3::translation(0.0, 0.0, 0.5), robot.chain.clone());
+//!     let config = ServoConfig::new(chain, robot.mount, camera, target, DesiredImage::Pose(goal));
 //!     let mut servo = VisualServo::new(config)?;
-//!     // A simulated world: the camera sees the target as `goal` at `q_goal`; the robot starts elsewhere.
+//!     // A simulated world: the target seen as `goal` from `q_goal`; the robot starts elsewhere.
 //!     let q_goal = JointVector::<6>::from([0.0, 0.0, 0.0, 0.0, 1.2, 0.0]);
 //!     let mut q = q_goal + JointVector::<6>::from([0.05, -0.04, 0.03, 0.05, -0.05, 0.1]);
-//!     let world = Experiment::builder(robot.chain, robot.mount, camera, target).goal(q_goal, goal).start(q).build()?;
+//!     let world = Experiment::builder(robot.chain, robot.mount, camera, target);
+//!     let world = world.goal(q_goal, goal).start(q).build()?;
 //!     for i in 0..6000 {
 //!         let t = i as f64 * 0.01; // a 100 Hz loop
-//!         let output = servo.step(t, &world.corners(&q)?, &q)?; // a real loop: the corners (px) of its detector
+//!         let output = servo.step(t, &world.corners(&q)?, &q)?; // or a real detector's corners (px)
 //!         if output.converged {
 //!             println!("converged after {t:.1} s");
 //!             return Ok(());

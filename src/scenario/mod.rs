@@ -44,7 +44,7 @@
 //!
 //! ```
 //! let scenario = servostack::scenario::Scenario::from_toml_str(
-//!     include_str!("../assets/scenarios/paper_afma6.toml"), None)?;
+//!     include_str!("../../assets/scenarios/paper_afma6.toml"), None)?;
 //! assert_eq!(scenario.name, "paper_afma6");
 //! # Ok::<(), servostack::scenario::ScenarioError>(())
 //! ```
@@ -476,7 +476,7 @@ impl Scenario {
     pub fn robot_model<const N: usize>(
         &self,
     ) -> Result<(SerialChain<N>, EyeInHand), ScenarioError> {
-        let (chain, camera, limits) = match &self.robot {
+        let (chain, mount, limits) = match &self.robot {
             RobotSpec::Builtin {
                 builtin,
                 joint_limits,
@@ -527,7 +527,7 @@ impl Scenario {
             }
         };
         let Some(limits) = limits else {
-            return Ok((chain, camera));
+            return Ok((chain, mount));
         };
         let lower = limit_values::<N>("robot.joint_limits.lower", &limits.lower)?;
         let upper = limit_values::<N>("robot.joint_limits.upper", &limits.upper)?;
@@ -543,7 +543,7 @@ impl Scenario {
         let chain = chain
             .with_limits(lower, upper)
             .map_err(|e| invalid("robot.joint_limits", e.to_string()))?;
-        Ok((chain, camera))
+        Ok((chain, mount))
     }
 
     /// The method's settings of this scenario: its `tasks`, `avoidance`, `controller`, `simulation`, `visibility`,
