@@ -29,7 +29,7 @@
 //!     let world = world.goal(q_goal, goal).start(q).build()?;
 //!     for i in 0..6000 {
 //!         let t = i as f64 * 0.01; // a 100 Hz loop
-//!         let output = servo.step(t, &world.corners(&q)?, &q)?; // or a real detector's corners (px)
+//!         let output = servo.step(t, &world.corners(&q)?, &q)?; // or a detector's corners (px)
 //!         if output.converged {
 //!             println!("converged after {t:.1} s");
 //!             return Ok(());
