@@ -21,8 +21,8 @@ fn kinematics(c: &mut Criterion) {
             |b| {
                 b.iter(|| {
                     let state = robot.chain.kinematics(&mut ws, black_box(&q)).unwrap();
-                    let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
-                    let camera_jacobian = robot.camera.camera_jacobian(state.tip_jacobian());
+                    let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
+                    let camera_jacobian = robot.mount.camera_jacobian(state.tip_jacobian());
                     black_box((base_from_camera, camera_jacobian))
                 })
             },

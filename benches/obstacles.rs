@@ -34,7 +34,7 @@ fn obstacles(c: &mut Criterion) {
     let robot = builtin::afma6().unwrap();
     let mut workspace = KinematicsWorkspace::new();
     let state = robot.chain.kinematics(&mut workspace, &q).unwrap();
-    let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
+    let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
     let points: Vec<Point3<f64>> = [(-0.1, -0.05), (0.1, -0.05), (0.1, 0.05), (-0.1, 0.05)]
         .iter()
         .map(|&(x, y)| base_from_camera * Point3::new(x, y, 0.5))
@@ -42,7 +42,7 @@ fn obstacles(c: &mut Criterion) {
     let intrinsics = CameraIntrinsics::new(800.0, 800.0, 320.0, 240.0, 640.0, 480.0).unwrap();
     let visibility = VisibilityCost::new(
         robot.chain.clone(),
-        robot.camera,
+        robot.mount,
         &intrinsics,
         &points,
         170.0,

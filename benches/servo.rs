@@ -39,7 +39,7 @@ fn peer() -> Peer {
     let goal = Isometry3::translation(0.0, 0.0, 0.5);
     let scene = Scene::with_target_seen_from(
         robot.chain.clone(),
-        robot.camera,
+        robot.mount,
         intrinsics,
         target,
         &desired_q,
@@ -53,7 +53,7 @@ fn peer() -> Peer {
     };
     let mut config = ServoConfig::new(
         robot.chain,
-        robot.camera,
+        robot.mount,
         camera,
         target,
         DesiredImage::Pose(goal),

@@ -4,9 +4,9 @@
 //!   standard families, [`DRAWS`] draws per family, seed 1, run in a rayon pool of 1 thread, then of every core
 //!   (`available_parallelism`). One JSON line per pool: draws, simulated control iterations, seconds, draws/s,
 //!   iterations/s; a last line gives the scaling (rate on all cores / rate on one).
-//! * `sim_overhead`: the full method (`StackController`) on the paper scenario through `Scenario::run_experiment`
+//! * `sim_overhead`: the full method (`RunKind::FullMethod`) on the paper scenario through `Experiment::run`
 //!   (simulation: sensing, tasks, controller, saturation, every record kept) and through
-//!   `Scenario::run_experiment_with` and a `SummaryOnly` log (as the study runs it), ns per simulated iteration, beside the controller step of
+//!   `Experiment::run_with` and a `SummaryOnly` log (as the study runs it), ns per simulated iteration, beside the controller step of
 //!   the `control_loop` bench (`step/paper_four_tasks_controller`: observation, the four paper tasks, controller with
 //!   avoidance, prediction and criteria, Euler step; no log, no saturation) on the peer scene, ns per step, and the
 //!   overheads `sim / step − 1`; then the same against the step with the full method's costs
@@ -79,13 +79,9 @@ fn sim_overhead(repeats: usize) {
         for _ in 0..repeats {
             let start = Instant::now();
             let run = if keep_records {
-                scenario.run_experiment(&experiment, RunKind::StackController)
+                experiment.run(&scenario.settings(), RunKind::FullMethod)
             } else {
-                scenario.run_experiment_with(
-                    &experiment,
-                    RunKind::StackController,
-                    &mut SummaryOnly,
-                )
+                experiment.run_with(&scenario.settings(), RunKind::FullMethod, &mut SummaryOnly)
             }
             .expect("run");
             let elapsed = start.elapsed().as_nanos() as f64;

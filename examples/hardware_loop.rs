@@ -104,7 +104,7 @@ fn run() -> Result<(), Box<dyn Error>> {
     // The servo, built once.
     let target = RectangleTarget::new(scenario.target.width_m, scenario.target.height_m)?;
     let goal = DesiredImage::Pose(experiment.desired_camera_from_target);
-    let mut config = ServoConfig::new(robot.chain, robot.camera, calibration, target, goal);
+    let mut config = ServoConfig::new(robot.chain, robot.mount, calibration, target, goal);
     config.tasks = TaskChoice::Sequence {
         gains: scenario.tasks.gains,
         fourth: FourthTask::Auto,
@@ -156,7 +156,7 @@ fn run() -> Result<(), Box<dyn Error>> {
     }
 
     // The camera pose reached against the goal's.
-    let mount = builtin::afma6()?.camera;
+    let mount = builtin::afma6()?.mount;
     let chain = experiment.scene.chain();
     let mut workspace = KinematicsWorkspace::new();
     let now = mount.base_from_camera(

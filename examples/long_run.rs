@@ -20,7 +20,7 @@ fn main() -> std::process::ExitCode {
 
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut iterations = 100_000_000usize;
-    let mut kind = RunKind::StackController;
+    let mut kind = RunKind::FullMethod;
     let mut jsonl = None;
     let mut path =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/paper_afma6.toml");
@@ -55,7 +55,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         }
         None => &mut SummaryOnly,
     };
-    let run = scenario.run_experiment_with(&experiment, kind, log)?;
+    let run = experiment.run_with(&scenario.settings(), kind, log)?;
     println!(
         "{} on {}: outcome {} after {} iterations in {:.1} s",
         kind.name(),

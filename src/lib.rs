@@ -1,7 +1,7 @@
 //! Stacked-task visual servoing (N. Mansard and F. Chaumette): prioritised visual tasks, joint-limit avoidance, and a
 //! stack controller that removes the blocking task and puts it back later ([§6](crate::theory#s6)).
 //!
-//! - [`servo`]: the method behind one call per control period.
+//! - [`prelude`]: what a first program uses (with [`nalgebra`], re-exported). [`servo`]: the method, one call a period.
 //! - Models: [`robot`], [`camera`], [`target`]. Tasks: [`feature`], [`visual_task`], [`task`].
 //! - The law: [`stack`], [`continuity`], [`law`], [`avoidance`]. Controller: [`controller`].
 //! - Real cameras: [`depth`], [`measurement`]. Simulation, study: [`sim`], [`scenario`], [`study`], [`report`].
@@ -9,51 +9,32 @@
 //!
 //! # Quick start
 //!
-//! Dependencies: `servostack`, `nalgebra = "0.35"` (Rust 1.89 or later). A built-in arm, a simulated camera:
+//! Dependencies: `servostack` (it re-exports [`nalgebra`]; Rust 1.89 or later). A built-in arm, a calibration file,
+//! a simulated camera:
 //!
 //! ```rust
-//! use nalgebra::{Isometry3, Vector6};
-//! use servostack::camera::{CalibratedCamera, CameraIntrinsics};
-//! use servostack::robot::{builtin, KinematicsWorkspace};
-//! use servostack::servo::{Corners, DesiredImage, ServoConfig, VisualServo};
-//! use servostack::target::RectangleTarget;
+//! use servostack::prelude::*;
 //!
 //! fn main() -> Result<(), Box<dyn std::error::Error>> {
-//!     // The Afma6 gantry and its camera; the goal: a 0.2 × 0.1 m target 0.5 m ahead (`cdMo`).
-//!     let robot = builtin::afma6()?;
-//!     let intrinsics = CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0)?;
-//!     let camera = CalibratedCamera::pinhole(intrinsics);
-//!     let target = RectangleTarget::new(0.2, 0.1)?;
-//!     let goal = Isometry3::translation(0.0, 0.0, 0.5);
-//!     let chain = robot.chain.clone();
-//!     let config = ServoConfig::new(chain, robot.camera, camera, target, DesiredImage::Pose(goal));
+//!     // The Afma6 gantry, its camera mount, a 0.2 × 0.1 m target seen 0.5 m ahead at the goal.
+//!     let (robot, target) = (builtin::afma6()?, RectangleTarget::new(0.2, 0.1)?);
+//!     let camera = CalibratedCamera::from_yaml_file("tests/data/ros_camera_info.yaml")?;
+//!     let (goal, chain) = (Isometry3::translation(0.0, 0.0, 0.5), robot.chain.clone());
+//!     let config = ServoConfig::new(chain, robot.mount, camera, target, DesiredImage::Pose(goal));
 //!     let mut servo = VisualServo::new(config)?;
-//!
-//!     // Simulated world: the target seen as `goal` from `q_goal`; the robot starts elsewhere.
-//!     let mut workspace = KinematicsWorkspace::new();
-//!     let mut camera_pose = |q: &Vector6<f64>| {
-//!         let kinematics = robot.chain.kinematics(&mut workspace, q);
-//!         kinematics.map(|k| robot.camera.base_from_camera(k.base_from_tip()))
-//!     };
-//!     let q_goal = Vector6::new(0.0, 0.0, 0.0, 0.0, 1.2, 0.0);
-//!     let base_from_target = camera_pose(&q_goal)? * goal;
-//!     let mut q = q_goal + Vector6::new(0.05, -0.04, 0.03, 0.05, -0.05, 0.1);
-//!
+//!     // A simulated world: the target seen as `goal` from `q_goal`; the robot starts elsewhere.
+//!     let q_goal = JointVector::<6>::from([0.0, 0.0, 0.0, 0.0, 1.2, 0.0]);
+//!     let mut q = q_goal + JointVector::<6>::from([0.05, -0.04, 0.03, 0.05, -0.05, 0.1]);
+//!     let world = Experiment::builder(robot.chain, robot.mount, camera, target);
+//!     let world = world.goal(q_goal, goal).start(q).build()?;
 //!     for i in 0..6000 {
 //!         let t = i as f64 * 0.01; // a 100 Hz loop
-//!         // Simulated camera. A real loop reads the corners (px) from its detector here.
-//!         let camera_from_target = camera_pose(&q)?.inverse() * base_from_target;
-//!         let corners: Corners = target.points().map(|corner| {
-//!             let p = camera_from_target * corner;
-//!             Some(camera.pixel_of(p.x / p.z, p.y / p.z))
-//!         });
-//!         let output = servo.step(t, &corners, &q)?;
+//!         let output = servo.step(t, &world.corners(&q)?, &q)?; // or a detector's corners (px)
 //!         if output.converged {
 //!             println!("converged after {t:.1} s");
 //!             return Ok(());
 //!         }
-//!         // Simulated robot. A real loop sends `output.velocity` to the drives here.
-//!         q += output.velocity * 0.01;
+//!         q += output.velocity * 0.01; // a real loop sends `output.velocity` to the drives here
 //!     }
 //!     Err("not converged".into())
 //! }
@@ -85,6 +66,7 @@ pub mod math;
 pub mod measurement;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod prelude;
 pub mod report;
 pub mod robot;
 pub mod scenario;
@@ -95,6 +77,9 @@ pub mod study;
 pub mod target;
 pub mod task;
 pub mod visual_task;
+
+/// nalgebra, whose vectors and poses the API takes (so that a user need not depend on it, nor match its version).
+pub use nalgebra;
 
 #[doc = include_str!("../docs/theory.md")]
 pub mod theory {

@@ -128,7 +128,7 @@ pub fn write_experiment<const N: usize>(
     let experiment = scenario.experiment::<N>()?;
     let mut runs = Vec::new();
     for kind in RunKind::ALL {
-        let run = scenario.run_experiment(&experiment, kind)?;
+        let run = experiment.run(&scenario.settings(), kind)?;
         #[cfg(feature = "plot")]
         {
             let desired = experiment

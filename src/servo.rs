@@ -9,7 +9,7 @@
 //! # fn send_velocity(_: &servostack::math::JointVector<6>) {}
 //! let (robot, camera) = (builtin::afma6()?, CalibratedCamera::from_yaml_file("camera.yaml")?);
 //! let goal = DesiredImage::Pose(nalgebra::Isometry3::translation(0.0, 0.0, 0.5)); // cdMo (m)
-//! let config = ServoConfig::new(robot.chain, robot.camera, camera, RectangleTarget::new(0.2, 0.1)?, goal);
+//! let config = ServoConfig::new(robot.chain, robot.mount, camera, RectangleTarget::new(0.2, 0.1)?, goal);
 //! let (mut servo, clock, mut velocity) = (VisualServo::new(config)?, std::time::Instant::now(), nalgebra::zero());
 //! loop {
 //!     let (corners, q) = (read_corners(), read_joints()); // DRIVER: read the corners (px) and joints (rad, m)

@@ -119,7 +119,7 @@ pub enum SimError {
 #[derive(Debug, Clone)]
 pub struct Scene<const N: usize> {
     chain: SerialChain<N>,
-    camera: EyeInHand,
+    mount: EyeInHand,
     intrinsics: CameraIntrinsics,
     target: RectangleTarget,
     base_from_object: Isometry3<f64>,
@@ -174,7 +174,7 @@ impl<const N: usize> Scene<N> {
     /// Non-finite `desired_q`, invalid `rho` or limits.
     pub fn with_target_seen_from(
         chain: SerialChain<N>,
-        camera: EyeInHand,
+        mount: EyeInHand,
         intrinsics: CameraIntrinsics,
         target: RectangleTarget,
         desired_q: &JointVector<N>,
@@ -184,11 +184,11 @@ impl<const N: usize> Scene<N> {
         let mut workspace = KinematicsWorkspace::new();
         let state = chain.kinematics(&mut workspace, desired_q)?;
         let base_from_object =
-            camera.base_from_camera(state.base_from_tip()) * desired_camera_from_object;
+            mount.base_from_camera(state.base_from_tip()) * desired_camera_from_object;
         let limits = JointLimits::new(*chain.lower_limits(), *chain.upper_limits(), rho)?;
         Ok(Self {
             chain,
-            camera,
+            mount,
             intrinsics,
             target,
             base_from_object,
@@ -197,6 +197,15 @@ impl<const N: usize> Scene<N> {
             obstacles: None,
             visibility: None,
         })
+    }
+
+    /// The scene with the joint-limit cost of activation ratio `rho` ([\[M19\]](crate::theory#m19)) in place of its own.
+    ///
+    /// # Errors
+    /// [`SimError::Cost`] for a ratio outside `(0, 1/2)`.
+    pub fn with_activation_ratio(mut self, rho: f64) -> Result<Self, SimError> {
+        self.limits = JointLimits::new(*self.limits.lower(), *self.limits.upper(), rho)?;
+        Ok(self)
     }
 
     /// The scene with world obstacles: their cost joins the avoidance cost, and a link–obstacle contact ends a run
@@ -236,7 +245,7 @@ impl<const N: usize> Scene<N> {
         let points = self.target.points().map(|p| self.base_from_object * p);
         let cost = VisibilityCost::new(
             self.chain.clone(),
-            self.camera,
+            self.mount,
             &self.intrinsics,
             &points,
             margin_px,
@@ -287,9 +296,19 @@ impl<const N: usize> Scene<N> {
         &self.chain
     }
 
+    /// The camera mount on the end effector (`eMc`).
+    pub fn mount(&self) -> &EyeInHand {
+        &self.mount
+    }
+
     /// The camera intrinsics.
     pub fn intrinsics(&self) -> &CameraIntrinsics {
         &self.intrinsics
+    }
+
+    /// The target.
+    pub fn target(&self) -> &RectangleTarget {
+        &self.target
     }
 
     /// The joint limits and their cost ([\[M19\]](crate::theory#m19)–\[M21\]).
@@ -379,12 +398,12 @@ impl<const N: usize> Scene<N> {
         view: &mut View<N>,
     ) -> Result<(), SimError> {
         let state = self.chain.kinematics(workspace, q)?;
-        let base_from_camera = self.camera.base_from_camera(state.base_from_tip());
+        let base_from_camera = self.mount.base_from_camera(state.base_from_tip());
         let c_from_o = base_from_camera.inverse() * self.base_from_object;
         self.project_into(&c_from_o, view)?;
         // cVe · eJe   [M42]
         crate::linalg::mul_rows_to(
-            self.camera.c_v_e(),
+            self.mount.c_v_e(),
             state.tip_jacobian(),
             &mut view.camera_jacobian,
         );
@@ -1192,7 +1211,7 @@ impl<'a> SensingState<'a> {
         Ok(Self {
             sensing,
             model: MeasurementModel::new(&sensing.measurement, scene.intrinsics, 4, period)?,
-            believed: perturbed_eye_in_hand(&scene.camera, &sensing.measurement)?,
+            believed: perturbed_eye_in_hand(&scene.mount, &sensing.measurement)?,
             estimator: match sensing.depth {
                 Some(source) => source.estimator(4).map_err(depth_error)?,
                 None => None,

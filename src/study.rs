@@ -303,7 +303,7 @@ impl DrawResult {
         let mut baselines = self
             .methods
             .iter()
-            .filter(|m| m.method != RunKind::StackController && m.converged())
+            .filter(|m| m.method != RunKind::FullMethod && m.converged())
             .peekable();
         baselines.peek().is_some() && baselines.all(MethodResult::converged_at_limit)
     }
@@ -602,8 +602,8 @@ impl<'a> Study<'a> {
                 self.methods
                     .iter()
                     .map(|&method| {
-                        let run = scenario.run_experiment_with(
-                            &experiment,
+                        let run = experiment.run_with(
+                            &scenario.settings(),
                             method,
                             &mut crate::sim::SummaryOnly,
                         )?;
@@ -700,7 +700,7 @@ impl<'a> Study<'a> {
         for &method in &self.methods {
             // The study reads the run's summary only: no record is kept.
             let run =
-                scenario.run_experiment_with(&experiment, method, &mut crate::sim::SummaryOnly)?;
+                experiment.run_with(&scenario.settings(), method, &mut crate::sim::SummaryOnly)?;
             methods.push(method_result(method, &run, &experiment)?);
         }
         Ok(DrawResult {
@@ -912,14 +912,14 @@ mod tests {
     /// every baseline that converged did so, and the full method's own margin plays no part.
     #[test]
     fn a_draw_is_won_only_at_a_limit_when_every_converged_baseline_touched_one() {
-        use RunKind::{Classical, StackController, StackGradient};
+        use RunKind::{Classical, FullMethod, StackGradient};
         assert!(result(Classical, "converged", 5e-4).converged_at_limit());
         assert!(!result(Classical, "converged", 2e-3).converged_at_limit());
         assert!(!result(Classical, "joint_limit", 0.0).converged_at_limit());
         let at_limit = result(Classical, "converged", 0.0);
         let clean = result(StackGradient, "converged", 0.05);
         let failed = result(StackGradient, "joint_limit", 0.0);
-        let full = result(StackController, "converged", 0.0);
+        let full = result(FullMethod, "converged", 0.0);
         assert!(draw(vec![at_limit.clone(), failed.clone(), full.clone()])
             .baselines_converged_only_at_limit());
         assert!(

@@ -52,8 +52,8 @@ fn peak_growth(iterations: usize, log: &mut dyn RunLog<6>) -> (usize, Run<6>) {
     let experiment = scenario.experiment::<6>().unwrap();
     let before = LIVE.load(Ordering::Relaxed);
     PEAK.store(before, Ordering::Relaxed);
-    let run = scenario
-        .run_experiment_with(&experiment, RunKind::Stack, log)
+    let run = experiment
+        .run_with(&scenario.settings(), RunKind::Stack, log)
         .unwrap();
     (PEAK.load(Ordering::Relaxed) - before, run)
 }
@@ -117,8 +117,8 @@ fn memory_is_bounded_and_the_summary_exact_whatever_the_log_keeps() {
     let scenario = endless(50);
     let experiment = scenario.experiment::<6>().unwrap();
     let mut log = JsonLines::new(Vec::new());
-    scenario
-        .run_experiment_with(&experiment, RunKind::Classical, &mut log)
+    experiment
+        .run_with(&scenario.settings(), RunKind::Classical, &mut log)
         .unwrap();
     let text = String::from_utf8(log.into_inner().unwrap()).unwrap();
     let lines: Vec<serde_json::Value> = text

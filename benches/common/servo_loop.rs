@@ -126,7 +126,7 @@ fn scene(rho: f64) -> Scene<6> {
         CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0).expect("intrinsics");
     Scene::with_target_seen_from(
         robot.chain,
-        robot.camera,
+        robot.mount,
         intrinsics,
         RectangleTarget::new(0.2, 0.1).expect("target"),
         &JointVector::from(DESIRED_Q),

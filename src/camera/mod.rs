@@ -296,6 +296,13 @@ impl CalibratedCamera {
     }
 }
 
+impl From<CameraIntrinsics> for CalibratedCamera {
+    /// [`CalibratedCamera::pinhole`].
+    fn from(intrinsics: CameraIntrinsics) -> Self {
+        Self::pinhole(intrinsics)
+    }
+}
+
 /// Projects a point given in the camera frame (m): `(X/Z, Y/Z, Z)` ([theory §7.1](crate::theory#s7-1)).
 ///
 /// # Errors

@@ -339,7 +339,7 @@ fn scenario_steps<const N: usize>(mut scenario: Scenario) -> Result<Option<Strin
     let experiment = scenario.experiment::<N>()?;
     for kind in RunKind::ALL {
         let mut log = FiniteRecords::default();
-        let run = match scenario.run_experiment_with(&experiment, kind, &mut log) {
+        let run = match experiment.run_with(&scenario.settings(), kind, &mut log) {
             Ok(run) => run,
             Err(_) => continue,
         };

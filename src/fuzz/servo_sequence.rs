@@ -42,7 +42,7 @@ fn servo_steps(seed: u64) -> Result<Result<(), String>, String> {
         let target = RectangleTarget::new(scenario.target.width_m, scenario.target.height_m)?;
         let mut config = ServoConfig::new(
             robot.chain,
-            robot.camera,
+            robot.mount,
             camera,
             target,
             DesiredImage::Pose(experiment.desired_camera_from_target),

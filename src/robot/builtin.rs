@@ -50,8 +50,8 @@ pub struct BuiltinRobot<const N: usize> {
     pub name: &'static str,
     /// The kinematic chain from base to end effector.
     pub chain: SerialChain<N>,
-    /// The camera mount on the end effector.
-    pub camera: EyeInHand,
+    /// The camera mount on the end effector (`eMc`).
+    pub mount: EyeInHand,
 }
 
 struct Spec {
@@ -115,7 +115,7 @@ pub fn by_name<const N: usize>(name: &str) -> Result<BuiltinRobot<N>, RobotError
     Ok(BuiltinRobot {
         name: spec.name,
         chain,
-        camera: EyeInHand::new(*mount.segment_from_tip())?,
+        mount: EyeInHand::new(*mount.segment_from_tip())?,
     })
 }
 

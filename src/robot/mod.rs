@@ -50,10 +50,10 @@
 //! let mut ws = KinematicsWorkspace::new();
 //! let q = JointVector::<6>::new(0.1, -0.2, 0.05, 0.3, 0.4, -0.1);
 //! let state = robot.chain.kinematics(&mut ws, &q)?;
-//! let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
-//! let camera_jacobian = robot.camera.camera_jacobian(state.tip_jacobian()); // cVe · eJe
+//! let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
+//! let camera_jacobian = robot.mount.camera_jacobian(state.tip_jacobian()); // cVe · eJe
 //! // The camera frame moves with the end effector: fMc = fMe · eMc.
-//! let e_from_c = robot.camera.e_from_c();
+//! let e_from_c = robot.mount.e_from_c();
 //! assert_eq!(base_from_camera, state.base_from_tip() * e_from_c);
 //! // Joint 1 is the gantry's x slide: q̇ = (1, 0, …) moves the camera along x of the base, 1 m/s.
 //! let c_from_base = base_from_camera.rotation.inverse();

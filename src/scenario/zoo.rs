@@ -97,7 +97,10 @@ impl Zoo {
     ///
     /// # Errors
     /// Those of [`generate`].
-    pub fn scenario(arm: &ArmSpec, robots_dir: &Path) -> Result<Scenario, ScenarioError> {
-        generate(arm, Some(robots_dir))
+    pub fn scenario(
+        arm: &ArmSpec,
+        robots_dir: impl AsRef<Path>,
+    ) -> Result<Scenario, ScenarioError> {
+        generate(arm, Some(robots_dir.as_ref()))
     }
 }

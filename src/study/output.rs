@@ -74,7 +74,7 @@ impl StudyResult {
             let off_goal = family
                 .methods
                 .iter()
-                .find(|m| m.method == RunKind::StackController)
+                .find(|m| m.method == RunKind::FullMethod)
                 .map_or("-".into(), |m| {
                     m.outcomes.get("off_goal").copied().unwrap_or(0).to_string()
                 });
@@ -128,7 +128,7 @@ impl std::fmt::Display for StudyResult {
             let full = family
                 .methods
                 .iter()
-                .find(|m| m.method == RunKind::StackController);
+                .find(|m| m.method == RunKind::FullMethod);
             writeln!(
                 f,
                 " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",

@@ -15,13 +15,13 @@ pub(super) fn summarize(
     draws: Vec<DrawResult>,
 ) -> FamilyResult {
     let position = |kind| methods.iter().position(|&m| m == kind);
-    let full = position(RunKind::StackController);
+    let full = position(RunKind::FullMethod);
     let stack_gradient = position(RunKind::StackGradient);
     let converged = |d: &DrawResult, i: Option<usize>| i.is_some_and(|i| d.methods[i].converged());
     let any_baseline = |d: &DrawResult| {
         d.methods
             .iter()
-            .any(|m| m.method != RunKind::StackController && m.converged())
+            .any(|m| m.method != RunKind::FullMethod && m.converged())
     };
     let only_at_limit = DrawResult::baselines_converged_only_at_limit;
     let summaries = methods

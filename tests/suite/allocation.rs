@@ -170,8 +170,8 @@ fn kinematics_camera_and_projection_allocate_nothing() {
         for k in 0..100 {
             let q = JointVector::<7>::from_element(0.01 * k as f64);
             let state = robot.chain.kinematics(&mut ws, &q).unwrap();
-            let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
-            let camera_jacobian = robot.camera.camera_jacobian(state.tip_jacobian());
+            let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
+            let camera_jacobian = robot.mount.camera_jacobian(state.tip_jacobian());
             state
                 .point_jacobian(&link, &Point3::new(0.1, 0.2, 0.3), &mut point_jacobian)
                 .unwrap();

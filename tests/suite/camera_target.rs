@@ -290,7 +290,7 @@ fn scene_seen_from(desired: &Isometry3<f64>) -> servostack::sim::Scene<6> {
     let robot = servostack::robot::builtin::afma6().unwrap();
     servostack::sim::Scene::with_target_seen_from(
         robot.chain,
-        robot.camera,
+        robot.mount,
         camera(),
         RectangleTarget::new(0.2, 0.1).unwrap(),
         &crate::obstacle_fixture::reference_q(),

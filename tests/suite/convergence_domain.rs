@@ -36,7 +36,7 @@ fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_g
         let full = family
             .methods
             .iter()
-            .find(|m| m.method == RunKind::StackController)
+            .find(|m| m.method == RunKind::FullMethod)
             .unwrap();
         assert!(full.converged >= 7, "{}: {full:?}", family.family.name);
         assert!(
@@ -49,7 +49,7 @@ fn full_method_converges_from_perturbed_starts_and_never_does_worse_than_stack_g
         let full_index = family
             .methods
             .iter()
-            .position(|m| m.method == RunKind::StackController)
+            .position(|m| m.method == RunKind::FullMethod)
             .unwrap();
         let mut most: Vec<f64> = family
             .draws
@@ -92,7 +92,7 @@ fn on_the_ur5e_the_full_method_covers_its_baselines() {
                 .unwrap()
                 .converged
         };
-        let full = converged(RunKind::StackController);
+        let full = converged(RunKind::FullMethod);
         for baseline in [RunKind::Classical, RunKind::Stack, RunKind::StackGradient] {
             assert!(
                 full >= converged(baseline),
@@ -152,7 +152,7 @@ fn full_method_outcomes(
 ) -> Vec<&'static str> {
     let study = Study::new(scenario, families(&[family]), draws, seed)
         .unwrap()
-        .with_methods(&[RunKind::StackController]);
+        .with_methods(&[RunKind::FullMethod]);
     let result = study.run().unwrap();
     result.families[0]
         .draws
@@ -293,7 +293,7 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     // one change, which the transition of D1 keeps continuous, and the sequence is complete at the end.
     let study = Study::new(&scenario, families(&["uniform"]), 24, 3)
         .unwrap()
-        .with_methods(&[RunKind::StackController]);
+        .with_methods(&[RunKind::FullMethod]);
     let draws = study.run().unwrap().families.remove(0).draws;
     let rescued = draws
         .iter()
@@ -303,8 +303,8 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
         .unwrap();
     let mut experiment = scenario.experiment::<6>().unwrap();
     experiment.start = JointVector::<6>::from_column_slice(&rescued.start);
-    let run = scenario
-        .run_experiment_with(&experiment, RunKind::StackController, &mut SummaryOnly)
+    let run = experiment
+        .run_with(&scenario.settings(), RunKind::FullMethod, &mut SummaryOnly)
         .unwrap();
     assert_eq!(run.outcome.name(), "converged");
     let restarts: Vec<_> = run
@@ -383,7 +383,7 @@ fn a_slice_marks_invalid_starts_and_runs_the_others() {
     let scenario = scenario("paper_afma6");
     let study = Study::new(&scenario, Vec::new(), 1, 1)
         .unwrap()
-        .with_methods(&[RunKind::Classical, RunKind::StackController]);
+        .with_methods(&[RunKind::Classical, RunKind::FullMethod]);
     let slice = study.slice((0, 2), (0.02, 0.04), 3).unwrap();
     let lower = -0.5001; // joint 2's lower limit (the Afma6 built-in)
     for (method, outcomes) in &slice.methods {
@@ -452,7 +452,7 @@ fn on_the_seven_joint_chain_swaps_do_not_cycle() {
     scenario.controller.settle_velocity_with_removal = scenario.controller.settle_velocity;
     let study = Study::new(&scenario, families(&["mild", "view_10deg"]), 20, 3)
         .unwrap()
-        .with_methods(&[RunKind::StackController]);
+        .with_methods(&[RunKind::FullMethod]);
     let result = study.run().unwrap();
     for family in &result.families {
         let full = &family.methods[0];
@@ -481,7 +481,7 @@ fn under_pixel_noise_the_full_method_settles_within_two_millimetres() {
     scenario.measurement.intrinsics_error_fraction = 0.05;
     let study = Study::new(&scenario, families(&["mild"]), 12, 21)
         .unwrap()
-        .with_methods(&[RunKind::StackController]);
+        .with_methods(&[RunKind::FullMethod]);
     let mut within_aim = 0;
     for draw in &study.run().unwrap().families[0].draws {
         let full = &draw.methods[0];

@@ -257,14 +257,14 @@ fn gains_horizons_and_periods_beyond_physical_ranges_are_named() {
     // D25: a braking rate above 1/period could not keep a joint from crossing its limit within one period.
     let mut scenario = Scenario::from_toml_str(UR5E_SCENARIO, None).unwrap();
     scenario.controller.braking_rate = 2.0 / scenario.simulation.period;
-    match scenario.run::<6>(RunKind::StackController) {
+    match scenario.run::<6>(RunKind::FullMethod) {
         Err(ScenarioError::Simulation(SimError::InvalidParameter { name, .. })) => {
             assert_eq!(name, "controller.braking_rate");
         }
         other => panic!("expected an invalid braking rate, got {other:?}"),
     }
     scenario.controller.braking_rate = f64::NAN;
-    assert!(scenario.run::<6>(RunKind::StackController).is_err());
+    assert!(scenario.run::<6>(RunKind::FullMethod).is_err());
     let far = UR5E_SCENARIO.replace(
         "translation_m = [0.0, 0.0, 0.45]",
         "translation_m = [0.0, 0.0, 1e308]",
@@ -370,7 +370,7 @@ fn a_run_out_of_budget_before_its_pushes_names_the_task_it_waited_for() {
     // One iteration: the centroid is pushed at the first, the angle task can never be.
     let mut scenario = Scenario::from_toml_str(UR5E_SCENARIO, None).unwrap();
     scenario.simulation.max_iterations = 1;
-    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
     let Outcome::Stalled { task, reason } = &run.outcome else {
         panic!("expected a stalled run, got {:?}", run.outcome);
     };

@@ -184,7 +184,7 @@ fn extreme_pixel_noise_is_a_named_error() {
     for value in ["1e308", "1001.0"] {
         let text = format!("{PAPER}\n[measurement]\npixel_noise_uniform_px = {value}\n");
         let scenario = Scenario::from_toml_str(&text, None).unwrap();
-        match scenario.run::<6>(RunKind::StackController) {
+        match scenario.run::<6>(RunKind::FullMethod) {
             Err(error) => {
                 let message = error.to_string();
                 assert!(
@@ -391,7 +391,7 @@ fn depths_target_sizes_and_hand_eye_errors_beyond_their_ranges_are_named() {
         let text = PAPER.replacen(from, to, 1);
         assert_ne!(text, PAPER, "{from}");
         let refused = Scenario::from_toml_str(&text, None)
-            .and_then(|s| s.run::<6>(RunKind::StackController).map(|_| ()));
+            .and_then(|s| s.run::<6>(RunKind::FullMethod).map(|_| ()));
         match refused {
             Err(error) => assert!(error.to_string().contains(named), "{to}: {error}"),
             Ok(()) => panic!("{to}: accepted"),

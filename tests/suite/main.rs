@@ -38,6 +38,7 @@ mod readme;
 mod real_camera_scenario;
 mod robot_kinematics;
 mod robot_urdf_errors;
+mod scenario_fields;
 mod scenario_generate;
 mod scenarios;
 mod servo;

@@ -35,7 +35,7 @@ fn run(parameters: MeasurementParameters) -> Result<(f64, f64), String> {
     let experiment = scenario.experiment::<6>().unwrap();
     let scene = &experiment.scene;
     let dt = 0.002;
-    let true_camera = builtin::by_name::<6>("afma6").unwrap().camera;
+    let true_camera = builtin::by_name::<6>("afma6").unwrap().mount;
     let believed_camera = perturbed_eye_in_hand(&true_camera, &parameters).unwrap();
     let mut model = MeasurementModel::new(&parameters, *scene.intrinsics(), 4, dt).unwrap();
 

@@ -34,7 +34,7 @@ fn the_story_holds_with_stl_mesh_link_geometry() {
 fn obstacle_story(scenario: &Scenario) {
     let experiment = scenario.experiment::<6>().unwrap();
     for kind in [RunKind::Classical, RunKind::StackGradient] {
-        let run = scenario.run_experiment(&experiment, kind).unwrap();
+        let run = experiment.run(&scenario.settings(), kind).unwrap();
         match &run.outcome {
             Outcome::Collision {
                 obstacle, distance, ..
@@ -46,8 +46,8 @@ fn obstacle_story(scenario: &Scenario) {
         }
         assert!(run.min_obstacle_distance().unwrap() <= 0.0);
     }
-    let run = scenario
-        .run_experiment(&experiment, RunKind::StackController)
+    let run = experiment
+        .run(&scenario.settings(), RunKind::FullMethod)
         .unwrap();
     assert_eq!(run.outcome, Outcome::Converged);
     let min_distance = run.min_obstacle_distance().unwrap();

@@ -110,14 +110,14 @@ fn afma6_visibility_facing(margin_px: f64, facing_deg: Option<f64>) -> Visibilit
         .chain
         .kinematics(&mut workspace, &fixture::reference_q())
         .unwrap();
-    let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
+    let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
     let points: Vec<Point3<f64>> = [(-0.1, -0.05), (0.1, -0.05), (0.1, 0.05), (-0.1, 0.05)]
         .iter()
         .map(|&(x, y)| base_from_camera * Point3::new(x, y, 0.5))
         .collect();
     let intrinsics = CameraIntrinsics::new(800.0, 800.0, 320.0, 240.0, 640.0, 480.0).unwrap();
     let cost =
-        VisibilityCost::new(robot.chain, robot.camera, &intrinsics, &points, margin_px).unwrap();
+        VisibilityCost::new(robot.chain, robot.mount, &intrinsics, &points, margin_px).unwrap();
     match facing_deg {
         None => cost,
         Some(activation) => cost
@@ -146,7 +146,7 @@ fn facing_term_value_and_bad_arguments() {
     let camera_at =
         |q: &JointVector<6>, workspace: &mut servostack::robot::KinematicsWorkspace<6>| {
             let state = robot.chain.kinematics(workspace, q).unwrap();
-            robot.camera.base_from_camera(state.base_from_tip())
+            robot.mount.base_from_camera(state.base_from_tip())
         };
     let reference = camera_at(&q, &mut workspace);
     let mut moved = q;

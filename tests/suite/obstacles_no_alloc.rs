@@ -27,7 +27,7 @@ fn controller_step_with_obstacles_and_visibility_allocates_nothing() {
     );
     let scene = Scene::with_target_seen_from(
         robot.chain,
-        robot.camera,
+        robot.mount,
         intrinsics,
         RectangleTarget::new(0.2, 0.1).unwrap(),
         &fixture::reference_q(),

@@ -23,7 +23,7 @@ fn scenario() -> &'static (Scenario, Experiment<6>) {
 
 fn run(kind: RunKind) -> Run<6> {
     let (scenario, experiment) = scenario();
-    scenario.run_experiment(experiment, kind).unwrap()
+    experiment.run(&scenario.settings(), kind).unwrap()
 }
 
 /// The names of the tasks stacked at the iteration where the run stopped on a joint limit.
@@ -71,7 +71,7 @@ fn stack_with_gradient_survives_the_third_task_and_fails_in_the_fourth() {
 
 #[test]
 fn full_method_removes_a_n_during_the_fourth_task_puts_it_back_and_converges() {
-    let run = run(RunKind::StackController);
+    let run = run(RunKind::FullMethod);
     assert_eq!(run.outcome, Outcome::Converged);
     assert!(run.min_normalized_margin() > 0.0, "left the limits");
     assert!(
@@ -120,7 +120,7 @@ fn full_method_removes_a_n_during_the_fourth_task_puts_it_back_and_converges() {
 #[test]
 fn full_method_velocity_ramps_at_every_change() {
     let (scenario, _) = scenario();
-    let run = run(RunKind::StackController);
+    let run = run(RunKind::FullMethod);
     let mu = 10.0 * scenario.tasks.gains.iter().copied().fold(0.0, f64::max);
     let ramp = 1.0 - (-mu * scenario.simulation.period).exp();
     let steps = run.velocity_steps();
@@ -189,7 +189,7 @@ fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
             let mut scenario = base.clone();
             change(&mut scenario);
             let experiment = scenario.experiment::<6>().unwrap();
-            let outcome = |kind| scenario.run_experiment(&experiment, kind).unwrap();
+            let outcome = |kind| experiment.run(&scenario.settings(), kind).unwrap();
             let label = format!("{name} × {factor}");
             assert_eq!(
                 outcome(RunKind::Classical).outcome.name(),
@@ -208,7 +208,7 @@ fn paper_outcomes_hold_with_each_tuned_parameter_moved_thirty_percent() {
                 ["centroid", "angle", "area", "third_order"],
                 "{label}"
             );
-            let full = outcome(RunKind::StackController);
+            let full = outcome(RunKind::FullMethod);
             assert_eq!(full.outcome, Outcome::Converged, "{label}");
             assert!(full.min_normalized_margin() > 0.0, "{label}");
             let removed: Vec<usize> = full.events_of(EventKind::Remove).map(|e| e.task).collect();
@@ -232,7 +232,7 @@ fn saturated_velocities_stay_within_the_limits_and_continuous() {
     let mut scenario = base.clone();
     scenario.simulation.max_prismatic_velocity_m_s = 0.02;
     scenario.simulation.max_revolute_velocity_rad_s = 0.05;
-    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
     let mut saturated = 0;
     for record in run.records.iter().filter(|r| r.sent) {
         for (i, v) in record.velocity.iter().enumerate() {
@@ -256,7 +256,7 @@ fn saturated_velocities_stay_within_the_limits_and_continuous() {
 #[test]
 fn the_reference_run_converges_at_its_goal_pose() {
     let (scenario, experiment) = scenario();
-    let run = run(RunKind::StackController);
+    let run = run(RunKind::FullMethod);
     assert_eq!(run.outcome, Outcome::Converged);
     let last = run.last_record().unwrap();
     let view = experiment
@@ -273,8 +273,8 @@ fn the_reference_run_converges_at_its_goal_pose() {
 
     let mut strict = scenario.clone();
     strict.simulation.goal_tolerance_m = translation / 2.0;
-    let strict_run = strict
-        .run_experiment(experiment, RunKind::StackController)
+    let strict_run = experiment
+        .run(&strict.settings(), RunKind::FullMethod)
         .unwrap();
     match strict_run.outcome {
         Outcome::OffGoal {

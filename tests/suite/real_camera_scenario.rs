@@ -49,7 +49,7 @@ fn full_method_reaches_the_goal_pose_through_a_noisy_camera() {
         .collect();
     let study = Study::new(&scenario, mild, 3, 11)
         .unwrap()
-        .with_methods(&[RunKind::StackController]);
+        .with_methods(&[RunKind::FullMethod]);
     for draw in &study.run().unwrap().families[0].draws {
         let full = &draw.methods[0];
         assert!(full.converged(), "draw {}: {full:?}", draw.draw);
@@ -67,8 +67,8 @@ fn full_method_reaches_the_goal_pose_through_a_noisy_camera() {
 
 fn reaches_the_goal_pose(scenario: &Scenario) {
     let experiment = scenario.experiment::<6>().unwrap();
-    let run = scenario
-        .run_experiment(&experiment, RunKind::StackController)
+    let run = experiment
+        .run(&scenario.settings(), RunKind::FullMethod)
         .unwrap();
     assert_eq!(run.outcome, Outcome::Converged, "{:?}", run.events);
     assert!(run.min_normalized_margin() > 0.0);
@@ -98,7 +98,7 @@ fn reaches_the_goal_pose(scenario: &Scenario) {
 
 fn field_of(text: &str) -> String {
     let scenario = Scenario::from_toml_str(text, None).unwrap();
-    match scenario.run::<6>(RunKind::StackController) {
+    match scenario.run::<6>(RunKind::FullMethod) {
         Err(ScenarioError::Invalid { field, .. }) => field,
         other => panic!("expected an invalid field, got {other:?}"),
     }

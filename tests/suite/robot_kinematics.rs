@@ -81,11 +81,11 @@ fn check_camera_twist<const N: usize>(
 ) {
     let mut ws = KinematicsWorkspace::new();
     let state = robot.chain.kinematics(&mut ws, q).unwrap();
-    let twist = robot.camera.camera_jacobian(state.tip_jacobian()) * qdot;
-    let base_from_camera = robot.camera.base_from_camera(state.base_from_tip());
+    let twist = robot.mount.camera_jacobian(state.tip_jacobian()) * qdot;
+    let base_from_camera = robot.mount.base_from_camera(state.base_from_tip());
     let (linear, _, angular_camera) = pose_rates(|h| {
         robot
-            .camera
+            .mount
             .base_from_camera(&fk(&robot.chain, &(q + qdot * h)))
     });
     let camera_from_base = base_from_camera.rotation.inverse();
@@ -295,7 +295,7 @@ fn afma6_limits_names_and_camera_mount_are_those_of_peer_scene() {
         0.0, 0.0, 0.0, 1.0,
     );
     assert_relative_eq!(
-        robot.camera.e_from_c().to_homogeneous(),
+        robot.mount.e_from_c().to_homogeneous(),
         e_from_c,
         epsilon = 1e-12
     );
@@ -303,7 +303,7 @@ fn afma6_limits_names_and_camera_mount_are_those_of_peer_scene() {
     let c_from_e = e_from_c.try_inverse().unwrap();
     let rot = c_from_e.fixed_view::<3, 3>(0, 0).into_owned();
     let t = c_from_e.fixed_view::<3, 1>(0, 3).into_owned();
-    let c_v_e = robot.camera.c_v_e();
+    let c_v_e = robot.mount.c_v_e();
     assert_relative_eq!(
         c_v_e.fixed_view::<3, 3>(0, 0).into_owned(),
         rot,

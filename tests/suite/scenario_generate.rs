@@ -114,10 +114,7 @@ fn the_scenario_generated_for_a_built_in_arm_is_the_papers_story() {
     assert_eq!(ur5e.desired.joints, ur5e_goal());
     Checks(&ur5e).call::<6>();
     // The full method, on the arm the scenario was written for by hand, converges from the generated start.
-    assert_eq!(
-        outcome::<6>(&ur5e, None, RunKind::StackController),
-        "converged"
-    );
+    assert_eq!(outcome::<6>(&ur5e, None, RunKind::FullMethod), "converged");
 }
 
 /// The built-in 7-joint chain `rail7` is a test chain whose wrist axis is tilted off its camera's optical axis: from

@@ -16,7 +16,7 @@ fn assets() -> &'static Path {
 #[test]
 fn full_method_on_the_six_revolute_arm_converges() {
     let scenario = Scenario::from_file(assets().join("ur5e.toml")).unwrap();
-    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
     assert_eq!(run.outcome, Outcome::Converged);
     assert_eq!(
         run.stacked_at_end(),
@@ -35,7 +35,7 @@ fn limit_story<const N: usize>(file: &str, joint: usize) -> Vec<Run<N>> {
     let experiment = scenario.experiment::<N>().unwrap();
     let runs: Vec<Run<N>> = RunKind::ALL
         .iter()
-        .map(|&kind| scenario.run_experiment(&experiment, kind).unwrap())
+        .map(|&kind| experiment.run(&scenario.settings(), kind).unwrap())
         .collect();
 
     match &runs[0].outcome {
@@ -97,7 +97,7 @@ fn a_removed_task_comes_back_when_its_return_keeps_the_target_in_view() {
         "/tests/data/scenarios/afma6_view_turned.toml"
     ));
     let scenario = Scenario::from_file(path).unwrap();
-    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
     assert_eq!(run.outcome, Outcome::Converged, "{:?}", run.events);
     assert_eq!(
         run.stacked_at_end(),
@@ -256,7 +256,7 @@ fn the_adaptive_gain_sets_the_tasks_pace() {
     let line = "gains = [0.6, 0.6, 0.6, 0.6]";
     let iterations = |text: &str| {
         let scenario = Scenario::from_toml_str(text, Some(assets())).unwrap();
-        let run = scenario.run::<6>(RunKind::StackController).unwrap();
+        let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
         assert_eq!(run.outcome, Outcome::Converged, "{text}");
         run.iterations() as f64
     };
@@ -288,7 +288,7 @@ fn convergence_waits_for_the_hold() {
     let line = "convergence_error = 1e-4";
     let run = |text: &str| {
         let scenario = Scenario::from_toml_str(text, Some(assets())).unwrap();
-        let run = scenario.run::<6>(RunKind::StackController).unwrap();
+        let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
         assert_eq!(run.outcome, Outcome::Converged);
         (run.iterations(), scenario.simulation.period)
     };
@@ -437,8 +437,8 @@ fn a_target_seen_too_obliquely_is_not_tracked() {
     let experiment = scenario.experiment::<6>().unwrap();
     let start = incidence_at(&experiment, &experiment.start);
     // The classical law's run, unchecked: the largest incidence it reaches after its start.
-    let free = scenario
-        .run_experiment(&experiment, RunKind::Classical)
+    let free = experiment
+        .run(&scenario.settings(), RunKind::Classical)
         .unwrap();
     let incidences: Vec<f64> = free
         .records

@@ -45,7 +45,7 @@ fn paper_config(
     let target = RectangleTarget::new(scenario.target.width_m, scenario.target.height_m).unwrap();
     let mut config = ServoConfig::new(
         robot.chain,
-        robot.camera,
+        robot.mount,
         camera,
         target,
         DesiredImage::Pose(experiment.desired_camera_from_target),
@@ -110,7 +110,7 @@ impl Plant {
 
     /// The camera pose error against the pose at `goal` (mm, deg).
     fn pose_error(&mut self, goal: &JointVector<6>) -> (f64, f64) {
-        let mount = builtin::afma6().unwrap().camera;
+        let mount = builtin::afma6().unwrap().mount;
         let chain = self.scene.chain().clone();
         let now = mount.base_from_camera(
             chain
@@ -610,7 +610,7 @@ fn peer(depth: DepthSource) -> (VisualServo<6>, Plant) {
     let goal = Isometry3::translation(0.0, 0.0, 0.5);
     let scene = Scene::with_target_seen_from(
         robot.chain.clone(),
-        robot.camera,
+        robot.mount,
         intrinsics,
         target,
         &desired_q,
@@ -624,7 +624,7 @@ fn peer(depth: DepthSource) -> (VisualServo<6>, Plant) {
     };
     let mut config = ServoConfig::new(
         robot.chain,
-        robot.camera,
+        robot.mount,
         camera,
         target,
         DesiredImage::Pose(goal),
@@ -814,7 +814,7 @@ fn the_classical_task_converges_on_the_peer_scene() {
     let robot = builtin::afma6().unwrap();
     let mut config = ServoConfig::new(
         robot.chain,
-        robot.camera,
+        robot.mount,
         plant.camera,
         RectangleTarget::new(0.2, 0.1).unwrap(),
         DesiredImage::Pose(Isometry3::translation(0.0, 0.0, 0.5)),

@@ -96,7 +96,7 @@ fn auto_keeps_the_paper_features_on_a_rectangle() {
 #[test]
 fn square_marker_scenario_converges_with_the_full_method() {
     let scenario = scenario();
-    let run = scenario.run::<6>(RunKind::StackController).unwrap();
+    let run = scenario.run::<6>(RunKind::FullMethod).unwrap();
     println!(
         "square marker: {:?} after {} iterations, {} events, min margin {:.3}",
         run.outcome,

@@ -24,7 +24,7 @@ fn scene() -> (Scene<6>, Isometry3<f64>, JointVector<6>) {
     let target = RectangleTarget::new(0.2, 0.1).unwrap();
     let scene = Scene::with_target_seen_from(
         robot.chain,
-        robot.camera,
+        robot.mount,
         intrinsics,
         target,
         &desired_q,

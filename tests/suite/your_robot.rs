@@ -29,7 +29,7 @@ fn four_runs_converge(scenario: &Scenario) -> Vec<servostack::sim::Run<7>> {
     RunKind::ALL
         .iter()
         .map(|&kind| {
-            let run = scenario.run_experiment(&experiment, kind).unwrap();
+            let run = experiment.run(&scenario.settings(), kind).unwrap();
             assert_eq!(run.outcome, Outcome::Converged, "{}", kind.name());
             assert!(run
                 .final_error_norm()
