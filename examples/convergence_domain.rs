@@ -524,7 +524,7 @@ fn merge(dirs: &[PathBuf], options: &Options) -> Result<(), Box<dyn std::error::
 
 #[cfg(feature = "plot")]
 mod figures {
-    use servostack::plot::{LinePlot, Marker, OutcomeMap, Series};
+    use servostack::plot::{FigureStyle, LinePlot, Marker, OutcomeMap, Series};
     use servostack::study::{Slice, StudyResult};
     use std::path::Path;
 
@@ -605,7 +605,7 @@ mod figures {
                     (method.name().to_owned(), cells)
                 })
                 .collect(),
-            size: (1800, 520),
+            style: FigureStyle::new(1800, 520),
         };
         map.render(out, "slice")?;
         Ok(())

@@ -23,8 +23,8 @@ pub struct OutcomeMap {
     pub categories: Vec<String>,
     /// Per panel, its name and the category of every cell (row-major, y outer).
     pub panels: Vec<(String, Vec<usize>)>,
-    /// Size in pixels (width, height), at least [`MIN_SIZE`].
-    pub size: (u32, u32),
+    /// Size and resolution.
+    pub style: FigureStyle,
 }
 
 impl OutcomeMap {
@@ -33,10 +33,11 @@ impl OutcomeMap {
     /// # Errors
     /// [`PlotError::NoSeries`] without panels or cells, [`PlotError::EmptySeries`] for a panel whose cell count is
     /// not `x_values.len() · y_values.len()` or that names a category beyond the list, [`PlotError::InvalidRange`]
-    /// for non-finite or non-increasing cell centres, [`PlotError::InvalidSize`], [`PlotError::InvalidStem`] before
-    /// any file is written; [`PlotError::Io`], [`PlotError::Draw`] or [`PlotError::Font`] while writing.
+    /// for non-finite or non-increasing cell centres, [`PlotError::InvalidSize`], [`PlotError::InvalidScale`],
+    /// [`PlotError::InvalidStem`] before any file is written; [`PlotError::Io`], [`PlotError::Draw`] or
+    /// [`PlotError::Font`] while writing.
     pub fn render(&self, out_dir: &Path, stem: &str) -> Result<RenderedFiles, PlotError> {
-        check_size(self.size)?;
+        self.style.check()?;
         if self.panels.is_empty() || self.x_values.is_empty() || self.y_values.is_empty() {
             return Err(PlotError::NoSeries {
                 figure: self.title.clone(),
@@ -60,7 +61,7 @@ impl OutcomeMap {
                 });
             }
         }
-        render_files(self, self.size, out_dir, stem)
+        render_files(self, self.style, out_dir, stem)
     }
 
     /// The cell edges along one axis: midpoints between centres, extended by half a step at both ends.
@@ -82,18 +83,18 @@ impl Draw for OutcomeMap {
         &self.title
     }
 
-    fn draw_body<DB: DrawingBackend>(&self, area: &Area<DB>) -> Drawn<DB> {
+    fn draw_body<DB: DrawingBackend>(&self, area: &Area<DB>, look: Look) -> Drawn<DB> {
         let entries: Vec<LegendEntry<'_>> = self
             .categories
             .iter()
             .zip(PALETTE.iter().cycle())
             .map(|(label, &color)| LegendEntry {
                 label,
-                swatch: Swatch::Circle(color),
+                swatch: Swatch::Fill(color),
             })
             .collect();
-        let (maps, legend) = split_legend(area, &entries)?;
-        draw_legend(&legend, &entries, MARGIN_PX as i32)?;
+        let (maps, legend) = split_legend(area, &entries, look)?;
+        draw_legend(&legend, &entries, &[], look.pxi(MARGIN_PX as i32), look)?;
         let x_edges = Self::edges(&self.x_values);
         let y_edges = Self::edges(&self.y_values);
         let (x0, x1) = (x_edges[0], x_edges[x_edges.len() - 1]);
@@ -104,10 +105,17 @@ impl Draw for OutcomeMap {
             .iter()
             .zip(maps.split_evenly((1, self.panels.len())))
         {
-            let mut chart = chart_builder(&panel, MARGIN_PX)
-                .caption(name, font(AXIS_DESC_FONT_PX))
+            let mut chart = chart_builder(&panel, look.px(MARGIN_PX), look)
+                .caption(name, look.font(AXIS_DESC_FONT_PX))
                 .build_cartesian_2d(x0..x1, y0..y1)?;
-            draw_mesh(&mut chart, &self.x_label, &self.y_label, 1.0, Scale::Linear)?;
+            draw_mesh(
+                &mut chart,
+                &self.x_label,
+                &self.y_label,
+                1.0,
+                Scale::Linear,
+                look,
+            )?;
             chart.draw_series(cells.iter().enumerate().map(|(k, &category)| {
                 let (i, j) = (k % nx, k / nx);
                 let color = PALETTE[category % PALETTE.len()];

@@ -40,23 +40,32 @@ impl Marker {
     }
 }
 
-/// A dashed horizontal reference line at ordinate `y`, e.g. a joint limit. Lines sharing a label share one legend
-/// entry.
+/// A horizontal reference line at ordinate `y`, e.g. a joint limit or an activation threshold, drawn across the
+/// plot in dark grey with its [`LinePattern`] (dashed unless set). Lines sharing a label and pattern share one legend
+/// entry; give different kinds of line different patterns so that they stay apart in the legend and in grey-scale.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct HorizontalLine {
     /// Ordinate in data units.
     pub y: f64,
     /// Legend entry.
     pub label: String,
+    /// Dash pattern.
+    pub pattern: LinePattern,
 }
 
 impl HorizontalLine {
-    /// A reference line at `y` with its legend label.
+    /// A dashed reference line at `y` with its legend label.
     pub fn new(y: f64, label: impl Into<String>) -> Self {
         Self {
             y,
             label: label.into(),
+            pattern: LinePattern::default(),
         }
+    }
+
+    /// The same line drawn with `pattern`.
+    pub fn with_pattern(self, pattern: LinePattern) -> Self {
+        Self { pattern, ..self }
     }
 }
 
@@ -90,6 +99,10 @@ impl Scale {
 
 /// Curves over a common abscissa (iterations or time) with reference lines and event markers.
 ///
+/// Each curve has its own colour, dash pattern and point marker (so that curves stay apart in grey-scale print);
+/// reference lines are dark grey with their own patterns, event markers grey dashed vertical lines labelled above
+/// the plotting area.
+///
 /// Build it with struct-update syntax from [`LinePlot::default`] and call [`LinePlot::render`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinePlot {
@@ -99,12 +112,15 @@ pub struct LinePlot {
     pub x_label: String,
     /// Description of the y axis (with units).
     pub y_label: String,
-    /// The curves, coloured in order from the palette.
+    /// The curves, styled in order (colour, dash pattern and marker each cycle through their lists).
     pub series: Vec<Series>,
     /// Labelled vertical lines (stack events); those outside the x range are not drawn.
     pub markers: Vec<Marker>,
-    /// Dashed horizontal reference lines (limits, thresholds); those outside the y range are not drawn.
+    /// Horizontal reference lines (limits, thresholds); those outside the y range are not drawn.
     pub horizontal_lines: Vec<HorizontalLine>,
+    /// Short paragraphs drawn below the legend, wrapped to its width: what a curve or line means when its name
+    /// cannot say it (e.g. a task held in reserve).
+    pub notes: Vec<String>,
     /// Explicit x range, outside which curves are clipped; `None` fits the series and markers.
     pub x_range: Option<(f64, f64)>,
     /// Explicit y range, outside which curves are clipped; `None` fits the series and reference lines with a 5 %
@@ -112,8 +128,8 @@ pub struct LinePlot {
     pub y_range: Option<(f64, f64)>,
     /// Scale of the y axis.
     pub y_scale: Scale,
-    /// Size in pixels (width, height), at least [`MIN_SIZE`].
-    pub size: (u32, u32),
+    /// Size and resolution.
+    pub style: FigureStyle,
 }
 
 impl Default for LinePlot {
@@ -125,10 +141,11 @@ impl Default for LinePlot {
             series: Vec::new(),
             markers: Vec::new(),
             horizontal_lines: Vec::new(),
+            notes: Vec::new(),
             x_range: None,
             y_range: None,
             y_scale: Scale::Linear,
-            size: DEFAULT_SIZE,
+            style: FigureStyle::default(),
         }
     }
 }
@@ -139,15 +156,16 @@ impl LinePlot {
     /// # Errors
     /// [`PlotError::NoSeries`], [`PlotError::EmptySeries`], [`PlotError::NonFinite`] (series points, marker
     /// abscissae, reference-line ordinates), [`PlotError::NonPositiveOnLogAxis`] (with [`Scale::Log10`]),
-    /// [`PlotError::InvalidRange`], [`PlotError::InvalidSize`], [`PlotError::InvalidStem`] before any file is
-    /// written; [`PlotError::Io`], [`PlotError::Draw`] or [`PlotError::Font`] while writing.
+    /// [`PlotError::InvalidRange`], [`PlotError::InvalidSize`], [`PlotError::InvalidScale`],
+    /// [`PlotError::InvalidStem`] before any file is written; [`PlotError::Io`], [`PlotError::Draw`] or
+    /// [`PlotError::Font`] while writing.
     pub fn render(&self, out_dir: &Path, stem: &str) -> Result<RenderedFiles, PlotError> {
         let prepared = self.prepare()?;
-        render_files(&prepared, self.size, out_dir, stem)
+        render_files(&prepared, self.style, out_dir, stem)
     }
 
-    fn prepare(&self) -> Result<PreparedLines<'_>, PlotError> {
-        check_size(self.size)?;
+    pub(super) fn prepare(&self) -> Result<PreparedLines<'_>, PlotError> {
+        self.style.check()?;
         if self.series.is_empty() {
             return Err(PlotError::NoSeries {
                 figure: self.title.clone(),
@@ -173,127 +191,184 @@ impl LinePlot {
     }
 }
 
-struct PreparedLines<'a> {
+pub(super) struct PreparedLines<'a> {
     plot: &'a LinePlot,
     x: (f64, f64),
     y: (f64, f64),
 }
 
+/// Stroke width of the reference lines, in layout pixels.
+const REFERENCE_STROKE_PX: u32 = 2;
+
 impl PreparedLines<'_> {
-    fn legend(&self) -> Vec<LegendEntry<'_>> {
+    /// One entry per series, then one per distinct (label, pattern) of the reference lines.
+    pub(super) fn legend(&self) -> Vec<LegendEntry<'_>> {
         let mut entries: Vec<LegendEntry<'_>> = self
             .plot
             .series
             .iter()
-            .zip(PALETTE.iter().cycle())
-            .map(|(s, &color)| LegendEntry {
+            .enumerate()
+            .map(|(i, s)| LegendEntry {
                 label: &s.name,
-                swatch: Swatch::Line(color),
+                swatch: Swatch::Series(SeriesStyle::nth(i)),
             })
             .collect();
         for (k, line) in self.plot.horizontal_lines.iter().enumerate() {
             let seen = self.plot.horizontal_lines[..k]
                 .iter()
-                .any(|other| other.label == line.label);
+                .any(|other| other.label == line.label && other.pattern == line.pattern);
             if !seen {
                 entries.push(LegendEntry {
                     label: &line.label,
-                    swatch: Swatch::Dashed(REFERENCE_COLOR),
+                    swatch: Swatch::Line {
+                        color: REFERENCE_COLOR,
+                        pattern: line.pattern,
+                        width: REFERENCE_STROKE_PX,
+                    },
                 });
             }
         }
         entries
     }
 
-    /// Builds the chart on `area` with the y coordinate `y_spec` (linear or logarithmic) and draws everything.
-    fn draw_chart<DB: DrawingBackend, Y>(&self, area: &Area<DB>, y_spec: Y) -> Drawn<DB, i32>
+    /// Builds the chart on `area` with the y coordinate `y_spec` (linear or logarithmic) and draws everything;
+    /// returns the pixel row of the plotting area's top in `area`.
+    fn draw_chart<DB: DrawingBackend, Y>(
+        &self,
+        area: &Area<DB>,
+        y_spec: impl Fn() -> Y,
+        look: Look,
+    ) -> Drawn<DB, i32>
     where
         Y: AsRangedCoord<Value = f64>,
         Y::CoordDescType: ValueFormatter<f64>,
     {
         let plot = self.plot;
-        let top = if plot.markers.is_empty() {
-            MARGIN_PX
-        } else {
-            MARGIN_PX + EVENT_ROWS * EVENT_ROW_PX
-        };
-        let mut chart = chart_builder(area, top).build_cartesian_2d(self.x.0..self.x.1, y_spec)?;
-        draw_mesh(&mut chart, &plot.x_label, &plot.y_label, 1.0, plot.y_scale)?;
-
-        let dashed = |points: [(f64, f64); 2], color: RGBColor| {
-            DashedLineSeries::new(points, 8, 6, color.stroke_width(2))
-        };
-        for line in plot.horizontal_lines.iter().filter(|l| within(l.y, self.y)) {
-            chart.draw_series(dashed(
-                [(self.x.0, line.y), (self.x.1, line.y)],
-                REFERENCE_COLOR,
-            ))?;
-        }
         let markers: Vec<&Marker> = plot
             .markers
             .iter()
             .filter(|m| within(m.x, self.x))
             .collect();
+        // The columns of the markers do not depend on the top margin: a first chart, not drawn, gives them, and
+        // the label layout gives the height of the band above the plotting area.
+        let label_style = look
+            .font(EVENT_FONT_PX)
+            .color(&EVENT_COLOR)
+            .pos(Pos::new(HPos::Center, VPos::Bottom));
+        let (base_x, base_y) = area.get_base_pixel();
+        let probe = chart_builder(area, look.px(MARGIN_PX), look)
+            .build_cartesian_2d(self.x.0..self.x.1, y_spec())?;
+        let mut items = Vec::with_capacity(markers.len());
         for marker in &markers {
-            chart.draw_series(dashed(
-                [(marker.x, self.y.0), (marker.x, self.y.1)],
-                EVENT_COLOR,
-            ))?;
+            let column = probe.backend_coord(&(marker.x, self.y.1)).0 - base_x;
+            let width = area.estimate_text_size(&marker.label, &label_style)?.0;
+            items.push((column, i32::try_from(width).unwrap_or(i32::MAX)));
         }
-        for (series, &color) in plot.series.iter().zip(PALETTE.iter().cycle()) {
+        let area_width = i32::try_from(area.dim_in_pixel().0).unwrap_or(i32::MAX);
+        let boxes = place_labels(&items, (0, area_width), look.pxi(EVENT_GAP_PX));
+        let rows = boxes.iter().map(|b| b.row + 1).max().unwrap_or(0);
+        let band = look.px(EVENT_ROW_PX) * u32::try_from(rows).unwrap_or(0);
+        let top = look.px(MARGIN_PX) + band + if rows > 0 { look.px(4) } else { 0 };
+
+        let mut chart =
+            chart_builder(area, top, look).build_cartesian_2d(self.x.0..self.x.1, y_spec())?;
+        draw_mesh(
+            &mut chart,
+            &plot.x_label,
+            &plot.y_label,
+            1.0,
+            plot.y_scale,
+            look,
+        )?;
+        let plotting = chart.plotting_area().strip_coord_spec();
+        let (plot_x, plot_y) = plotting.get_base_pixel();
+        let pixel = |p: &(f64, f64)| {
+            let (x, y) = chart.backend_coord(p);
+            (f64::from(x - plot_x), f64::from(y - plot_y))
+        };
+        for line in plot.horizontal_lines.iter().filter(|l| within(l.y, self.y)) {
+            let ends = [pixel(&(self.x.0, line.y)), pixel(&(self.x.1, line.y))];
+            draw_line(
+                &plotting,
+                &ends,
+                REFERENCE_COLOR,
+                REFERENCE_STROKE_PX,
+                line.pattern,
+                look,
+            )?;
+        }
+        for marker in &markers {
+            let ends = [pixel(&(marker.x, self.y.0)), pixel(&(marker.x, self.y.1))];
+            draw_line(&plotting, &ends, EVENT_COLOR, 2, LinePattern::Dashed, look)?;
+        }
+        let count = plot.series.len().max(1) as f64;
+        for (i, series) in plot.series.iter().enumerate() {
+            // Markers of the curves interleaved along the arc length.
+            let phase = (i as f64 + 0.5) / count;
             for run in clip_polyline(&series.points, self.x, self.y, plot.y_scale) {
-                chart.draw_series(LineSeries::new(run, color.stroke_width(SERIES_STROKE_PX)))?;
+                let pixels: Vec<Px> = run.iter().map(pixel).collect();
+                draw_curve(&plotting, &pixels, SeriesStyle::nth(i), phase, look)?;
             }
         }
 
-        let (_, plot_top) = chart.plotting_area().get_base_pixel();
-        let (base_x, base_y) = area.get_base_pixel();
-        let mut labels: Vec<(i32, &str)> = markers
-            .iter()
-            .map(|m| {
-                (
-                    chart.backend_coord(&(m.x, self.y.1)).0 - base_x,
-                    m.label.as_str(),
-                )
-            })
-            .collect();
-        draw_event_labels(area, &mut labels, plot_top - base_y)?;
-        Ok(plot_top - base_y)
+        let plot_top = plot_y - base_y;
+        for (marker, label) in markers.iter().zip(&boxes) {
+            let centre = (label.left + label.right) / 2;
+            let raise = look.pxi(EVENT_ROW_PX as i32) * i32::try_from(label.row).unwrap_or(0);
+            let bottom = plot_top - look.pxi(4) - raise;
+            area.draw(&Text::new(
+                marker.label.as_str(),
+                (centre, bottom),
+                label_style.clone(),
+            ))?;
+        }
+        Ok(plot_top)
     }
 }
 
-/// Draws each `(pixel column, label)` centred on its column, in the band just above pixel row `plot_top` of
-/// `area`, on the lowest of [`EVENT_ROWS`] rows where it does not overlap the labels already placed from the left
-/// (on the row that ends leftmost when none is free).
-fn draw_event_labels<DB: DrawingBackend>(
-    area: &Area<DB>,
-    labels: &mut [(i32, &str)],
-    plot_top: i32,
-) -> Drawn<DB> {
-    const GAP_PX: i32 = 6;
-    let style = font(EVENT_FONT_PX)
-        .color(&EVENT_COLOR)
-        .pos(Pos::new(HPos::Center, VPos::Bottom));
-    labels.sort_by_key(|&(column, _)| column);
-    // Right end of the last label placed on each row, bottom row first.
-    let mut row_ends = [i32::MIN; EVENT_ROWS as usize];
-    for &(column, label) in labels.iter() {
-        let width = i32::try_from(area.estimate_text_size(label, &style)?.0).unwrap_or(0);
-        let left = column - width / 2;
-        let free = row_ends.iter().position(|&end| end + GAP_PX <= left);
-        let leftmost = || {
-            let rows = row_ends.iter().enumerate();
-            rows.min_by_key(|&(_, &end)| end).map_or(0, |(row, _)| row)
+/// Where an event label goes: its horizontal extent in pixels and its row above the plotting area (0 nearest).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct LabelBox {
+    pub(super) left: i32,
+    pub(super) right: i32,
+    pub(super) row: usize,
+}
+
+/// Places labels `(column, width)` (pixels), each centred on its column but shifted to stay within `bounds`, on
+/// the lowest row where it keeps `gap` pixels from the labels already there; a new row opens when none has room,
+/// so no two labels overlap. Returns the boxes in the order of `items`. Placing from the left on the lowest free
+/// row uses the fewest rows any placement of these intervals can.
+pub(super) fn place_labels(items: &[(i32, i32)], bounds: (i32, i32), gap: i32) -> Vec<LabelBox> {
+    let mut boxes: Vec<LabelBox> = items
+        .iter()
+        .map(|&(column, width)| {
+            let left = (column - width / 2).min(bounds.1 - width).max(bounds.0);
+            LabelBox {
+                left,
+                right: left + width,
+                row: 0,
+            }
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
+    order.sort_by_key(|&k| (boxes[k].left, k));
+    // Right end of the last label placed on each row.
+    let mut row_ends: Vec<i32> = Vec::new();
+    for k in order {
+        let label = &mut boxes[k];
+        let row = match row_ends.iter().position(|&end| end + gap <= label.left) {
+            Some(row) => row,
+            None => {
+                row_ends.push(i32::MIN);
+                row_ends.len() - 1
+            }
         };
-        let row = free.unwrap_or_else(leftmost);
         if let Some(end) = row_ends.get_mut(row) {
-            *end = left + width;
+            *end = label.right;
         }
-        let raise = EVENT_ROW_PX * u32::try_from(row).unwrap_or(0);
-        let y = plot_top - 4 - i32::try_from(raise).unwrap_or(0);
-        area.draw(&Text::new(label, (column, y), style.clone()))?;
+        label.row = row;
     }
-    Ok(())
+    boxes
 }
 
 impl Draw for PreparedLines<'_> {
@@ -301,13 +376,15 @@ impl Draw for PreparedLines<'_> {
         &self.plot.title
     }
 
-    fn draw_body<DB: DrawingBackend>(&self, body: &Area<DB>) -> Drawn<DB> {
+    fn draw_body<DB: DrawingBackend>(&self, body: &Area<DB>, look: Look) -> Drawn<DB> {
         let entries = self.legend();
-        let (chart_area, legend_area) = split_legend(body, &entries)?;
+        let (chart_area, legend_area) = split_legend(body, &entries, look)?;
+        let (lo, hi) = self.y;
         let plot_top = match self.plot.y_scale {
-            Scale::Linear => self.draw_chart(&chart_area, self.y.0..self.y.1)?,
-            Scale::Log10 => self.draw_chart(&chart_area, (self.y.0..self.y.1).log_scale())?,
+            Scale::Linear => self.draw_chart(&chart_area, || lo..hi, look)?,
+            Scale::Log10 => self.draw_chart(&chart_area, || (lo..hi).log_scale(), look)?,
         };
-        draw_legend(&legend_area, &entries, plot_top)
+        draw_legend(&legend_area, &entries, &self.plot.notes, plot_top, look)?;
+        Ok(())
     }
 }

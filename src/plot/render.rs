@@ -1,4 +1,4 @@
-//! Drawing shared by every figure kind: files, title, legend, axes and tick labels.
+//! Drawing shared by every figure kind: files, title, legend, notes, axes and tick labels.
 
 use super::*;
 
@@ -11,19 +11,19 @@ pub(super) type Drawn<DB, T = ()> =
 /// A validated figure that can draw itself on any plotters backend.
 pub(super) trait Draw {
     fn title(&self) -> &str;
-    fn draw_body<DB: DrawingBackend>(&self, area: &Area<DB>) -> Drawn<DB>;
+    fn draw_body<DB: DrawingBackend>(&self, area: &Area<DB>, look: Look) -> Drawn<DB>;
 }
 
 /// Fills the background, draws the title and the body.
-fn draw_figure<DB: DrawingBackend, F: Draw>(figure: &F, root: &Area<DB>) -> Drawn<DB> {
+fn draw_figure<DB: DrawingBackend, F: Draw>(figure: &F, root: &Area<DB>, look: Look) -> Drawn<DB> {
     root.fill(&WHITE)?;
     let body = if figure.title().is_empty() {
         root.clone()
     } else {
-        root.margin(10, 0, 0, 0)
-            .titled(figure.title(), font(TITLE_FONT_PX))?
+        root.margin(look.px(10), 0, 0, 0)
+            .titled(figure.title(), look.font(TITLE_FONT_PX))?
     };
-    figure.draw_body(&body)?;
+    figure.draw_body(&body, look)?;
     root.present()
 }
 
@@ -31,18 +31,20 @@ fn draw_figure<DB: DrawingBackend, F: Draw>(figure: &F, root: &Area<DB>) -> Draw
 fn draw_file<DB: DrawingBackend, F: Draw>(
     figure: &F,
     area: Area<DB>,
+    look: Look,
     path: &Path,
 ) -> Result<(), PlotError> {
-    draw_figure(figure, &area).map_err(|e| PlotError::Draw {
+    draw_figure(figure, &area, look).map_err(|e| PlotError::Draw {
         path: path.to_path_buf(),
         message: e.to_string(),
     })
 }
 
-/// Validates the stem, registers the font, creates `out_dir` and writes `stem.png` and `stem.svg`.
+/// Validates the stem, registers the font, creates `out_dir` and writes `stem.png` (at the style's scale) and
+/// `stem.svg` (at scale 1).
 pub(super) fn render_files<F: Draw>(
     figure: &F,
-    size: (u32, u32),
+    style: FigureStyle,
     out_dir: &Path,
     stem: &str,
 ) -> Result<RenderedFiles, PlotError> {
@@ -59,22 +61,34 @@ pub(super) fn render_files<F: Draw>(
     };
     draw_file(
         figure,
-        BitMapBackend::new(&files.png, size).into_drawing_area(),
+        BitMapBackend::new(&files.png, style.png_size()).into_drawing_area(),
+        Look { scale: style.scale },
         &files.png,
     )?;
     draw_file(
         figure,
-        SVGBackend::new(&files.svg, size).into_drawing_area(),
+        SVGBackend::new(&files.svg, (style.width, style.height)).into_drawing_area(),
+        Look { scale: 1.0 },
         &files.svg,
     )?;
     Ok(files)
 }
 
 /// The sample drawn next to a legend label.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Swatch {
-    Line(RGBColor),
-    Dashed(RGBColor),
+    /// A curve: its colour, pattern and marker.
+    Series(SeriesStyle),
+    /// A reference line of `color` with `pattern`, `width` layout pixels wide.
+    Line {
+        color: RGBColor,
+        pattern: LinePattern,
+        width: u32,
+    },
+    /// An outlined rectangle (a border).
+    Frame(RGBColor),
+    /// A filled square (a category).
+    Fill(RGBColor),
     Circle(RGBColor),
     Cross(RGBColor),
 }
@@ -88,76 +102,161 @@ pub(super) struct LegendEntry<'a> {
 fn legend_width<DB: DrawingBackend>(
     area: &Area<DB>,
     entries: &[LegendEntry<'_>],
+    look: Look,
 ) -> Drawn<DB, u32> {
-    let style = font(LEGEND_FONT_PX);
+    let style = look.font(LEGEND_FONT_PX);
     let mut text = 0;
     for entry in entries {
         text = text.max(area.estimate_text_size(entry.label, &style)?.0);
     }
-    let wanted = text + LEGEND_SWATCH_PX.unsigned_abs() + 3 * MARGIN_PX / 2;
+    let wanted = text + look.pxi(LEGEND_SWATCH_PX).unsigned_abs() + look.px(3 * MARGIN_PX / 2);
     Ok(wanted.min(area.dim_in_pixel().0 * 2 / 5))
 }
 
-/// Draws the legend entries top-down from pixel row `top` of `area`.
+/// Draws the legend entries top-down from pixel row `top` of `area`, then the `notes` below them (each wrapped to
+/// the strip's width); returns the pixel row below the last line.
 pub(super) fn draw_legend<DB: DrawingBackend>(
     area: &Area<DB>,
     entries: &[LegendEntry<'_>],
+    notes: &[String],
     top: i32,
-) -> Drawn<DB> {
-    let style = font(LEGEND_FONT_PX).pos(Pos::new(HPos::Left, VPos::Center));
-    let x0 = 4;
-    let x1 = x0 + LEGEND_SWATCH_PX - 8;
-    let xc = (x0 + x1) / 2;
-    for (row, entry) in (0..).zip(entries) {
-        let y = top + LEGEND_ROW_PX / 2 + row * LEGEND_ROW_PX;
+    look: Look,
+) -> Drawn<DB, i32> {
+    let style = look
+        .font(LEGEND_FONT_PX)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let x0 = look.pxi(4);
+    let x1 = x0 + look.pxi(LEGEND_SWATCH_PX - 8);
+    let xc = f64::from(x0 + x1) / 2.0;
+    let row_px = look.pxi(LEGEND_ROW_PX);
+    let mut y = top + row_px / 2;
+    for entry in entries {
+        let yf = f64::from(y);
+        let (left, right) = ((f64::from(x0), yf), (f64::from(x1), yf));
         match entry.swatch {
-            Swatch::Line(color) => {
-                area.draw(&PathElement::new(
-                    [(x0, y), (x1, y)],
-                    color.stroke_width(SERIES_STROKE_PX + 1),
-                ))?;
-            }
-            Swatch::Dashed(color) => {
-                for dash in [x0, x0 + 11, x0 + 22] {
-                    area.draw(&PathElement::new(
-                        [(dash, y), (dash + 6, y)],
-                        color.stroke_width(2),
-                    ))?;
+            Swatch::Series(series) => {
+                draw_line(
+                    area,
+                    &[left, right],
+                    series.color,
+                    SERIES_STROKE_PX,
+                    series.pattern,
+                    look,
+                )?;
+                if let Some(marker) = series.marker {
+                    draw_marker(area, (xc, yf), marker, series.color, look)?;
                 }
             }
-            Swatch::Circle(color) => area.draw(&Circle::new((xc, y), 6, color.stroke_width(2)))?,
-            Swatch::Cross(color) => area.draw(&Cross::new((xc, y), 6, color.stroke_width(3)))?,
+            Swatch::Line {
+                color,
+                pattern,
+                width,
+            } => draw_line(area, &[left, right], color, width, pattern, look)?,
+            Swatch::Frame(color) => {
+                let h = look.pxi(7);
+                area.draw(&Rectangle::new(
+                    [(x0 + look.pxi(6), y - h), (x1 - look.pxi(6), y + h)],
+                    look.stroke(color, 2),
+                ))?;
+            }
+            Swatch::Fill(color) => {
+                let h = look.pxi(7);
+                area.draw(&Rectangle::new(
+                    [(x0 + look.pxi(8), y - h), (x1 - look.pxi(8), y + h)],
+                    color.filled(),
+                ))?;
+            }
+            Swatch::Circle(color) => area.draw(&Circle::new(
+                (xc.round() as i32, y),
+                look.pxi(6),
+                look.stroke(color, 2),
+            ))?,
+            Swatch::Cross(color) => area.draw(&Cross::new(
+                (xc.round() as i32, y),
+                look.pxi(6),
+                look.stroke(color, 3),
+            ))?,
         }
         area.draw(&Text::new(
             entry.label,
-            (x0 + LEGEND_SWATCH_PX, y),
+            (x0 + look.pxi(LEGEND_SWATCH_PX), y),
             style.clone(),
         ))?;
+        y += row_px;
     }
-    Ok(())
+    let mut bottom = y - row_px / 2;
+    if !notes.is_empty() {
+        let note_style = look
+            .font(NOTE_FONT_PX)
+            .color(&EVENT_COLOR)
+            .pos(Pos::new(HPos::Left, VPos::Top));
+        let width = area
+            .dim_in_pixel()
+            .0
+            .saturating_sub(x0.unsigned_abs() + look.px(4));
+        bottom += look.pxi(NOTE_ROW_PX) / 2;
+        for note in notes {
+            for line in wrap_text(area, note, &note_style, width)? {
+                area.draw(&Text::new(line, (x0, bottom), note_style.clone()))?;
+                bottom += look.pxi(NOTE_ROW_PX);
+            }
+            bottom += look.pxi(NOTE_ROW_PX) / 3;
+        }
+    }
+    Ok(bottom)
+}
+
+/// `text` broken at spaces into lines no wider than `width` pixels (a single word wider than that is a line of its
+/// own).
+pub(super) fn wrap_text<DB: DrawingBackend>(
+    area: &Area<DB>,
+    text: &str,
+    style: &TextStyle<'_>,
+    width: u32,
+) -> Drawn<DB, Vec<String>> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for word in text.split_whitespace() {
+        let candidate = if line.is_empty() {
+            word.to_owned()
+        } else {
+            format!("{line} {word}")
+        };
+        if line.is_empty() || area.estimate_text_size(&candidate, style)?.0 <= width {
+            line = candidate;
+        } else {
+            lines.push(std::mem::replace(&mut line, word.to_owned()));
+        }
+    }
+    if !line.is_empty() {
+        lines.push(line);
+    }
+    Ok(lines)
 }
 
 /// Splits off the legend strip on the right of `body`; returns (chart area, legend area).
 pub(super) fn split_legend<DB: DrawingBackend>(
     body: &Area<DB>,
     entries: &[LegendEntry<'_>],
+    look: Look,
 ) -> Drawn<DB, (Area<DB>, Area<DB>)> {
-    let width = legend_width(body, entries)?;
+    let width = legend_width(body, entries, look)?;
     Ok(body.split_horizontally(body.dim_in_pixel().0.saturating_sub(width)))
 }
 
 pub(super) fn chart_builder<'a, 'b, DB: DrawingBackend>(
     area: &'a Area<DB>,
     top: u32,
+    look: Look,
 ) -> ChartBuilder<'a, 'b, DB> {
     let mut builder = ChartBuilder::on(area);
     builder
         .margin_top(top)
-        .margin_bottom(MARGIN_PX)
-        .margin_left(MARGIN_PX)
-        .margin_right(MARGIN_PX)
-        .x_label_area_size(X_LABEL_AREA_PX)
-        .y_label_area_size(Y_LABEL_AREA_PX);
+        .margin_bottom(look.px(MARGIN_PX))
+        .margin_left(look.px(MARGIN_PX))
+        .margin_right(look.px(MARGIN_PX))
+        .x_label_area_size(look.px(X_LABEL_AREA_PX))
+        .y_label_area_size(look.px(Y_LABEL_AREA_PX));
     builder
 }
 
@@ -169,6 +268,7 @@ pub(super) fn draw_mesh<DB: DrawingBackend, X, Y>(
     y_label: &str,
     y_sign: f64,
     y_scale: Scale,
+    look: Look,
 ) -> Drawn<DB>
 where
     X: Ranged<ValueType = f64> + ValueFormatter<f64>,
@@ -186,10 +286,12 @@ where
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
-        .axis_desc_style(font(AXIS_DESC_FONT_PX))
-        .label_style(font(TICK_FONT_PX))
-        .bold_line_style(GRID_BOLD)
-        .light_line_style(GRID_LIGHT)
+        .axis_desc_style(look.font(AXIS_DESC_FONT_PX))
+        .label_style(look.font(TICK_FONT_PX))
+        .bold_line_style(look.stroke(GRID_BOLD, 1))
+        .light_line_style(look.stroke(GRID_LIGHT, 1))
+        .axis_style(look.stroke(BLACK, 1))
+        .set_all_tick_mark_size(look.pxi(5))
         .x_labels(10)
         .y_labels(8)
         .x_label_formatter(&x_format)

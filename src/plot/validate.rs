@@ -1,4 +1,5 @@
-//! Validation of figure data before any file is touched: sizes, points, axis ranges, file stems.
+//! Validation of figure data before any file is touched: points, axis ranges, file stems (sizes:
+//! [`FigureStyle`]).
 
 use super::*;
 
@@ -24,13 +25,6 @@ impl Bounds {
 
 fn extend(range: Option<(f64, f64)>, v: f64) -> (f64, f64) {
     range.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v)))
-}
-
-pub(super) fn check_size((width, height): (u32, u32)) -> Result<(), PlotError> {
-    if width < MIN_SIZE.0 || height < MIN_SIZE.1 {
-        return Err(PlotError::InvalidSize { width, height });
-    }
-    Ok(())
 }
 
 /// Rejects an empty point list, non-finite coordinates and, on a log axis, non-positive ordinates.
