@@ -232,13 +232,13 @@ impl PreparedLines<'_> {
     }
 
     /// Builds the chart on `area` with the y coordinate `y_spec` (linear or logarithmic) and draws everything;
-    /// returns the pixel row of the plotting area's top in `area`.
+    /// returns the pixel row of the plotting area's top in `area` and, when the events are numbered, their key.
     fn draw_chart<DB: DrawingBackend, Y>(
         &self,
         area: &Area<DB>,
         y_spec: impl Fn() -> Y,
         look: Look,
-    ) -> Drawn<DB, i32>
+    ) -> Drawn<DB, (i32, Option<String>)>
     where
         Y: AsRangedCoord<Value = f64>,
         Y::CoordDescType: ValueFormatter<f64>,
@@ -258,15 +258,44 @@ impl PreparedLines<'_> {
         let (base_x, base_y) = area.get_base_pixel();
         let probe = chart_builder(area, look.px(MARGIN_PX), look)
             .build_cartesian_2d(self.x.0..self.x.1, y_spec())?;
-        let mut items = Vec::with_capacity(markers.len());
-        for marker in &markers {
-            let column = probe.backend_coord(&(marker.x, self.y.1)).0 - base_x;
-            let width = area.estimate_text_size(&marker.label, &label_style)?.0;
-            items.push((column, i32::try_from(width).unwrap_or(i32::MAX)));
-        }
+        let columns: Vec<i32> = markers
+            .iter()
+            .map(|m| probe.backend_coord(&(m.x, self.y.1)).0 - base_x)
+            .collect();
         let area_width = i32::try_from(area.dim_in_pixel().0).unwrap_or(i32::MAX);
-        let boxes = place_labels(&items, (0, area_width), look.pxi(EVENT_GAP_PX));
-        let rows = boxes.iter().map(|b| b.row + 1).max().unwrap_or(0);
+        let layout = |texts: &[String]| -> Drawn<DB, Vec<LabelBox>> {
+            let mut items = Vec::with_capacity(texts.len());
+            for (&column, text) in columns.iter().zip(texts) {
+                let width = area.estimate_text_size(text, &label_style)?.0;
+                items.push((column, i32::try_from(width).unwrap_or(i32::MAX)));
+            }
+            Ok(place_labels(
+                &items,
+                (0, area_width),
+                look.pxi(EVENT_GAP_PX),
+            ))
+        };
+        let row_count = |boxes: &[LabelBox]| boxes.iter().map(|b| b.row + 1).max().unwrap_or(0);
+        let mut texts: Vec<String> = markers.iter().map(|m| m.label.clone()).collect();
+        let mut boxes = layout(&texts)?;
+        // Too many close events for their labels to fit a quarter of the height: numbers on the lines, the key
+        // below the legend.
+        let max_rows = (area.dim_in_pixel().1 / 4 / look.px(EVENT_ROW_PX).max(1)).max(3);
+        let mut key = None;
+        if row_count(&boxes) > usize::try_from(max_rows).unwrap_or(usize::MAX) {
+            let mut order: Vec<usize> = (0..markers.len()).collect();
+            order.sort_by(|&a, &b| markers[a].x.total_cmp(&markers[b].x));
+            let mut entries = Vec::with_capacity(order.len());
+            for (number, &k) in (1..).zip(&order) {
+                texts[k] = number.to_string();
+                // No-break spaces keep each entry on one line of the wrapped key.
+                let label = markers[k].label.replace(' ', "\u{a0}");
+                entries.push(format!("{number}\u{a0}{label}"));
+            }
+            key = Some(format!("Events: {}.", entries.join("\u{a0}· ")));
+            boxes = layout(&texts)?;
+        }
+        let rows = row_count(&boxes);
         let band = look.px(EVENT_ROW_PX) * u32::try_from(rows).unwrap_or(0);
         let top = look.px(MARGIN_PX) + band + if rows > 0 { look.px(4) } else { 0 };
 
@@ -312,17 +341,17 @@ impl PreparedLines<'_> {
         }
 
         let plot_top = plot_y - base_y;
-        for (marker, label) in markers.iter().zip(&boxes) {
+        for (text, label) in texts.iter().zip(&boxes) {
             let centre = (label.left + label.right) / 2;
             let raise = look.pxi(EVENT_ROW_PX as i32) * i32::try_from(label.row).unwrap_or(0);
             let bottom = plot_top - look.pxi(4) - raise;
             area.draw(&Text::new(
-                marker.label.as_str(),
+                text.as_str(),
                 (centre, bottom),
                 label_style.clone(),
             ))?;
         }
-        Ok(plot_top)
+        Ok((plot_top, key))
     }
 }
 
@@ -380,11 +409,13 @@ impl Draw for PreparedLines<'_> {
         let entries = self.legend();
         let (chart_area, legend_area) = split_legend(body, &entries, look)?;
         let (lo, hi) = self.y;
-        let plot_top = match self.plot.y_scale {
+        let (plot_top, key) = match self.plot.y_scale {
             Scale::Linear => self.draw_chart(&chart_area, || lo..hi, look)?,
             Scale::Log10 => self.draw_chart(&chart_area, || (lo..hi).log_scale(), look)?,
         };
-        draw_legend(&legend_area, &entries, &self.plot.notes, plot_top, look)?;
+        let mut notes = self.plot.notes.clone();
+        notes.extend(key);
+        draw_legend(&legend_area, &entries, &notes, plot_top, look)?;
         Ok(())
     }
 }

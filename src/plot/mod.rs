@@ -28,7 +28,8 @@
 //! go below it, wrapped to its width (the report explains there the task held in reserve, D23). Event labels are
 //! drawn centred on their line in a band above the plotting area, each on the lowest row where it does not overlap
 //! another label (and shifted inside the figure at its edges): the band has as many rows as close events need, so
-//! labels never overlap.
+//! labels never overlap. When that would take more than a quarter of the figure's height, the lines are numbered
+//! in time order instead and the key ("Events: 1 push angle · 2 …") goes below the legend.
 //!
 //! # Size and resolution
 //!

@@ -206,8 +206,8 @@ pub(super) fn draw_legend<DB: DrawingBackend>(
     Ok(bottom)
 }
 
-/// `text` broken at spaces into lines no wider than `width` pixels (a single word wider than that is a line of its
-/// own).
+/// `text` broken at its (ASCII) spaces into lines no wider than `width` pixels (a single word wider than that is a
+/// line of its own); no-break spaces hold words together.
 pub(super) fn wrap_text<DB: DrawingBackend>(
     area: &Area<DB>,
     text: &str,
@@ -216,7 +216,7 @@ pub(super) fn wrap_text<DB: DrawingBackend>(
 ) -> Drawn<DB, Vec<String>> {
     let mut lines: Vec<String> = Vec::new();
     let mut line = String::new();
-    for word in text.split_whitespace() {
+    for word in text.split(' ').filter(|w| !w.is_empty()) {
         let candidate = if line.is_empty() {
             word.to_owned()
         } else {

@@ -869,3 +869,37 @@ fn invalid_sizes_and_scales_are_errors() {
         Err(PlotError::InvalidSize { width: 0, .. })
     ));
 }
+
+#[test]
+fn many_close_events_are_numbered_with_a_key() {
+    let out = OutDir::new("numbered");
+    // Twenty events within 40 % of the run, as the obstacle scenario's full method has.
+    let events: Vec<(f64, String)> = (0..20)
+        .map(|k| (20.0 + 8.0 * f64::from(k), format!("remove task_{k}")))
+        .collect();
+    let plot = LinePlot {
+        markers: events
+            .iter()
+            .map(|(x, l)| Marker::new(*x, l.clone()))
+            .collect(),
+        ..joints_plot()
+    };
+    let svg = std::fs::read_to_string(plot.render(&out.0, "many").unwrap().svg).unwrap();
+    let numbers: Vec<String> = (1..=20).map(|k| k.to_string()).collect();
+    let labels: Vec<&str> = numbers.iter().map(String::as_str).collect();
+    let boxes = event_label_boxes(&svg, &labels);
+    assert_disjoint(&boxes, &labels);
+    // Numbered in time order: left to right.
+    assert!(boxes.windows(2).all(|w| w[0].0 < w[1].0), "{boxes:?}");
+    let key: String = svg_texts(&svg)
+        .iter()
+        .filter(|t| t.0 > boxes[19].2)
+        .map(|t| t.2.replace('\u{a0}', " "))
+        .collect::<Vec<_>>()
+        .join(" ");
+    assert!(
+        key.contains("Events: 1 remove task_0 · 2 remove task_1"),
+        "{key}"
+    );
+    assert!(key.contains("20 remove task_19."), "{key}");
+}
