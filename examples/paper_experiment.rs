@@ -13,6 +13,9 @@ use servostack::report::{write_experiment_with, ReportOptions};
 use servostack::scenario::Scenario;
 use std::path::PathBuf;
 
+#[path = "common/figure_args.rs"]
+mod figure_args;
+
 fn main() -> std::process::ExitCode {
     servostack::report::exit_code(run())
 }
@@ -27,7 +30,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         match pair {
             [flag, dir] if flag == "--out" => out = PathBuf::from(dir),
             [flag, value] if flag == "--size" || flag == "--scale" => {
-                options = figure_option(options, flag, value)?;
+                options = figure_args::figure_option(options, flag, value, USAGE)?;
             }
             _ => return Err(USAGE.into()),
         }
@@ -38,31 +41,4 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     print!("{summary}");
     println!("figures and summary.json in {}", out.display());
     Ok(())
-}
-
-/// `options` with the figure size (`--size WxH`) or PNG scale (`--scale S`) set from `value`.
-#[cfg(feature = "plot")]
-fn figure_option(
-    options: ReportOptions,
-    flag: &str,
-    value: &str,
-) -> Result<ReportOptions, Box<dyn std::error::Error>> {
-    let mut style = options.figure_style;
-    if flag == "--size" {
-        let (w, h) = value.split_once('x').ok_or(USAGE)?;
-        (style.width, style.height) = (w.parse()?, h.parse()?);
-    } else {
-        style.scale = value.parse()?;
-    }
-    Ok(options.with_figure_style(style))
-}
-
-/// Without the `plot` feature there are no figures to size.
-#[cfg(not(feature = "plot"))]
-fn figure_option(
-    options: ReportOptions,
-    _flag: &str,
-    _value: &str,
-) -> Result<ReportOptions, Box<dyn std::error::Error>> {
-    Ok(options)
 }
