@@ -188,13 +188,7 @@ pub fn write_experiment_with<const N: usize>(
     std::fs::create_dir_all(out_dir).map_err(io(out_dir))?;
     let experiment = scenario.experiment::<N>()?;
     #[cfg(feature = "plot")]
-    let joint_names: Vec<&str> = experiment
-        .scene
-        .chain()
-        .joints()
-        .iter()
-        .map(crate::robot::Joint::name)
-        .collect();
+    let joint_names = experiment.scene.chain().joint_names();
     let mut runs = Vec::new();
     for kind in RunKind::ALL {
         let run = experiment.run(&scenario.settings(), kind)?;

@@ -61,13 +61,7 @@ mod figures {
             .view_from(&experiment.desired_camera_from_target)
             .unwrap()
             .points;
-        let names: Vec<&str> = experiment
-            .scene
-            .chain()
-            .joints()
-            .iter()
-            .map(crate::robot::Joint::name)
-            .collect();
+        let names = experiment.scene.chain().joint_names();
         let context = FigureContext {
             intrinsics: experiment.scene.intrinsics(),
             desired: &desired,

@@ -476,6 +476,11 @@ impl<const N: usize> SerialChain<N> {
         &self.joints
     }
 
+    /// The names of [`Self::joints`], in the order of `q` (the URDF's joint names for a loaded chain).
+    pub fn joint_names(&self) -> [&str; N] {
+        self.joints.each_ref().map(Joint::name)
+    }
+
     /// The mimic joints of the path, from base to tip, all after the last of [`Self::joints`] (see [`MimicJoint`]).
     pub fn mimic_joints(&self) -> &[MimicJoint] {
         &self.mimic_joints
