@@ -316,9 +316,18 @@ impl Scenario {
     /// The first invalid field: an unknown robot, a joint vector of the wrong size or outside the limits, invalid
     /// intrinsics, target, poses, gains or thresholds, a start from which the target is not entirely in the image.
     pub fn experiment<const N: usize>(&self) -> Result<Experiment<N>, ScenarioError> {
+        self.experiment_on(self.robot_model::<N>()?)
+    }
+
+    /// [`Self::experiment`] on a robot model already read by [`Self::robot_model`] from this scenario's `[robot]`
+    /// (or from a scenario with the same `[robot]`): what a study does for the many situations it draws of one robot,
+    /// which would otherwise read and parse the URDF file for each.
+    pub(crate) fn experiment_on<const N: usize>(
+        &self,
+        (chain, mount): (SerialChain<N>, EyeInHand),
+    ) -> Result<Experiment<N>, ScenarioError> {
         let settings = self.settings();
         settings.adaptive_gain()?;
-        let (chain, mount) = self.robot_model::<N>()?;
         let desired_joints = joints::<N>("desired.joints", &self.desired.joints)?;
         let start = joints::<N>("start.joints", &self.start.joints)?;
         for (field, q) in [

@@ -68,3 +68,27 @@ fn uniform_starts_are_told_apart_and_the_feasible_family_keeps_only_the_straight
     // Without a method counted as the full one, the share is over no converged draw but still reported.
     assert_eq!(feasible.full_method_straight_feasible, 0);
 }
+
+/// On the UR5e of the suite (joints over ±2π, a 0.55 rad elbow) about one uniform attempt in ten thousand is a valid,
+/// straight-feasible start: the `feasible` family still draws every situation, each one straight-feasible, and some
+/// need tens of thousands of attempts.
+#[test]
+fn the_feasible_family_draws_on_an_arm_where_straight_starts_are_rare() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/scenarios/ur5e_limits.toml"
+    );
+    let scenario = Scenario::from_file(Path::new(path)).unwrap();
+    let study = Study::new(&scenario, vec![family("feasible")], 12, 3).unwrap();
+    let mut attempts = Vec::new();
+    for draw in 0..12 {
+        let (situation, experiment, rejected) = study.situation::<6>("feasible", draw).unwrap();
+        assert!(straight_feasible(&situation, &experiment), "draw {draw}");
+        attempts.push(rejected + 1);
+    }
+    let total: usize = attempts.iter().sum();
+    assert!(
+        total > 12 * 1000,
+        "straight-feasible starts are not rare here: {attempts:?}"
+    );
+}
