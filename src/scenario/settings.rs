@@ -335,7 +335,10 @@ impl Settings {
             None => Vec::new(),
         };
         let sensing = sensing.map(|s| s.with_true_tasks(&true_tasks));
-        let avoid = matches!(kind, RunKind::StackGradient | RunKind::FullMethod);
+        let avoid = matches!(
+            kind,
+            RunKind::StackGradient | RunKind::FullMethod | RunKind::Sns
+        );
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
         let adaptive_gain = self.adaptive_gain()?;
         let max_gain = match (kind, adaptive_gain) {
@@ -384,6 +387,7 @@ impl Settings {
             sensing: sensing.as_ref(),
             adaptive_gain,
             reserve_task: full_method,
+            saturate_in_null_space: kind == RunKind::Sns,
         };
         Ok(simulate_with(
             &scene,

@@ -11,6 +11,8 @@ use servostack::law::{
     control_step, AvoidanceProjection, ControlLaw, ControlWorkspace, LawError, StackChange,
 };
 use servostack::math::JointVector;
+use servostack::scenario::{RunKind, Scenario};
+use servostack::sim::Outcome;
 use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
 use servostack::task::{TaskJacobian, TaskValue};
 
@@ -558,4 +560,31 @@ fn lower_level_scales_are_rarely_short_of_the_largest() {
         short <= 40,
         "{short} of 2000 second levels short of the largest scale"
     );
+}
+
+/// SNS as a method of the scenarios, on the two suite scenarios where the classical law ends on a joint limit: the run
+/// does not, every configuration stays inside the limits and every velocity sent within the robot's velocity limits.
+#[test]
+fn sns_runs_of_the_limit_scenarios_never_pass_a_bound() {
+    let assets = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios"));
+    for file in ["ur5e_limits.toml", "paper_afma6.toml"] {
+        let scenario = Scenario::from_file(assets.join(file)).unwrap();
+        let run = scenario.run::<6>(RunKind::Sns).unwrap();
+        assert!(
+            !matches!(run.outcome, Outcome::JointLimit { .. }),
+            "{file}: {:?}",
+            run.outcome
+        );
+        assert!(run.min_normalized_margin() >= 0.0, "{file}");
+        let max = scenario.simulation.max_revolute_velocity_rad_s;
+        for record in &run.records {
+            assert!(
+                record.velocity.amax() <= max,
+                "{file}, iteration {}: {}",
+                record.iteration,
+                record.velocity
+            );
+        }
+        assert_eq!(RunKind::from_name("sns"), Some(RunKind::Sns));
+    }
 }
