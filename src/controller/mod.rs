@@ -141,7 +141,9 @@ pub use events::{
     ControllerStatus, ControllerStep, EventKind, ReinsertionReport, ReinsertionTest, RemovalReport,
     StackEvent, TaskCriteria,
 };
-pub use parameters::{ControllerError, ControllerParameters, DecisionRule, RemovalCriterion};
+pub use parameters::{
+    ControllerError, ControllerParameters, DecisionRule, HardLimitRule, RemovalCriterion,
+};
 
 /// The controller's phase: what it may do at the next iteration ([theory §6.6](crate::theory#s6-6)). Its
 /// transitions are made in one place each: Sequencing → Recentring by the restart (D29, `recovery.rs`),
