@@ -455,6 +455,7 @@ impl<const N: usize> ControlWorkspace<N> {
     /// still, and the stack and its avoidance term are solved again on the other joints
     /// ([`StackWorkspace::lock_joints`]), until no joint in the band is driven in. A change of the locked joints
     /// restarts the transition from the last velocity, as a stack change does, so the velocity stays continuous.
+    /// Replaces the saturation in the null space if it was set ([`Self::saturate_in_null_space`]).
     ///
     /// # Errors
     /// [`LawError::InvalidLockBand`] for a band outside `(0, 0.5)`.
