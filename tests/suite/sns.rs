@@ -13,7 +13,7 @@ use servostack::law::{
 use servostack::math::JointVector;
 use servostack::scenario::{RunKind, Scenario};
 use servostack::sim::Outcome;
-use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
+use servostack::stack::{solve_stack, StackError, StackParameters, StackWorkspace};
 use servostack::task::{TaskJacobian, TaskValue};
 
 /// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2].
@@ -494,17 +494,21 @@ fn bad_bounds_and_inputs_are_clear_errors() {
     // An unknown task index is the stack's error.
     let err = solve_sns(&p, &mut workspace, &tasks, &[3], None, &lo, &hi).unwrap_err();
     assert!(matches!(err, SnsError::Stack(_)), "{err}");
-    // Non-finite task data.
-    let bad = [TaskValue::from_parts(
-        "x",
-        DVector::from_vec(vec![f64::NAN]),
-        TaskJacobian::<3>::from_row_slice(&[1.0, 0.0, 0.0]),
-        1.0,
-    )];
-    if let Ok(bad) = bad[0].clone() {
-        let err = solve_sns(&p, &mut workspace, &[bad], &[0], None, &lo, &hi).unwrap_err();
-        assert!(matches!(err, SnsError::Stack(_)), "{err}");
-    }
+    // Non-finite task data (written through the task's mutable parts, which skip the checks of `from_parts`).
+    let mut bad = tasks[0].clone();
+    bad.parts_mut().1[(0, 2)] = f64::NAN;
+    let err = solve_sns(&p, &mut workspace, &[bad], &[0], None, &lo, &hi).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            SnsError::Stack(StackError::NonFiniteTask {
+                what: "jacobian",
+                column: 2,
+                ..
+            })
+        ),
+        "{err}"
+    );
     // The law with SNS and a projection it has no counterpart for.
     let law = ControlLaw::new(10.0, 0.5)
         .unwrap()
