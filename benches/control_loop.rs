@@ -13,11 +13,14 @@
 //!
 //! Run with `cargo bench --bench control_loop`.
 
+#[path = "common/perturbed.rs"]
+mod perturbed;
 #[path = "common/servo_loop.rs"]
 mod servo_loop;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::DVector;
+use perturbed::perturbed;
 use servo_loop::{ServoLoop, Variant};
 use servostack::avoidance::Cost;
 use servostack::controller::{ControllerParameters, StackController};
@@ -193,20 +196,6 @@ fn synthetic_tasks<const N: usize>(rows: &[usize]) -> Vec<TaskValue<N>> {
             });
             let error = DVector::from_fn(m, |r, _| 0.1 * ((i + r) as f64).cos());
             TaskValue::from_parts(&format!("t{i}"), error, jacobian, 0.5).unwrap()
-        })
-        .collect()
-}
-
-/// `tasks` with every Jacobian entry scaled by `1 + 1e−3·sin(·)`: the change of one control period.
-fn perturbed<const N: usize>(tasks: &[TaskValue<N>]) -> Vec<TaskValue<N>> {
-    tasks
-        .iter()
-        .enumerate()
-        .map(|(i, task)| {
-            let jacobian = TaskJacobian::<N>::from_fn(task.rows(), |r, c| {
-                task.jacobian()[(r, c)] * (1.0 + 1e-3 * ((i + 3 * r + 7 * c) as f64).sin())
-            });
-            TaskValue::from_parts("perturbed", task.error().clone(), jacobian, task.gain()).unwrap()
         })
         .collect()
 }

@@ -16,7 +16,7 @@
 //! Variants, for the controller's ablation and sensitivity tables (`scripts/controller_sweep.py`): `--set PATH=VALUE`
 //! sets a field of the scenario (of every arm's, with `--zoo`) by its dotted path, `--scale PATH=FACTOR` multiplies a
 //! number (its default when the file leaves it out), `--method NAME` runs only the methods named (`classical`,
-//! `stack`, `stack_gradient`, `stack_controller`).
+//! `stack`, `stack_gradient`, `stack_controller`, and `sns`, saturation in the null space, which runs only when named).
 //!
 //! Sharding: `--shard I/N` runs only the draws `d` with `d mod N = I` of every family (of every arm), as one job of a
 //! job array, without the slice; `--merge DIR... [--out OUT]` combines the shards' directories (a study's, or a zoo
@@ -110,10 +110,8 @@ fn parse(args: &[String]) -> Result<Options, Box<dyn std::error::Error>> {
             }
             "--method" => {
                 let v = value("--method")?;
-                let kind = RunKind::ALL
-                    .into_iter()
-                    .find(|k| k.name() == v)
-                    .ok_or_else(|| format!("--method {v}: not a method"))?;
+                let kind =
+                    RunKind::from_name(&v).ok_or_else(|| format!("--method {v}: not a method"))?;
                 options.methods.push(kind);
             }
             "--zoo" => options.zoo = true,

@@ -31,9 +31,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
             "--iterations" => iterations = value()?.parse()?,
             "--kind" => {
                 let name = value()?;
-                kind = *RunKind::ALL
-                    .iter()
-                    .find(|k| k.name() == name)
+                kind = RunKind::from_name(&name)
                     .ok_or_else(|| format!("unknown run kind {name}; {USAGE}"))?;
             }
             "--jsonl" => jsonl = Some(PathBuf::from(value()?)),

@@ -42,6 +42,9 @@ use crate::math::{first_non_finite, JointVector};
 use crate::stack::{solve_stack, StackError, StackParameters, StackSolution, StackWorkspace};
 use crate::task::TaskValue;
 
+pub mod sns;
+use sns::{SnsBounds, SnsError, SnsLaw, SnsSolution};
+
 /// Errors of the control law.
 #[non_exhaustive]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -109,6 +112,13 @@ pub enum LawError {
         /// The upper bound given.
         upper: f64,
     },
+    /// The SNS solve or its bounds failed.
+    #[error(transparent)]
+    Sns(#[from] SnsError),
+    /// SNS takes the avoidance term as its last level `J = I`, which is the kernel projection
+    /// ([`AvoidanceProjection::Kernel`]) when no bound is active; another projection has no SNS counterpart.
+    #[error("saturation in the null space needs the kernel avoidance projection")]
+    SnsNeedsKernelProjection,
     /// [`AvoidanceProjection::NormPreserving`] is defined for a stack of one level only.
     #[error("the norm-preserving projection needs a stack of one level, not {levels}")]
     NormPreservingNeedsOneLevel {
@@ -385,10 +395,21 @@ impl<const N: usize> ControlOutput<N> {
 #[derive(Debug, Clone)]
 pub struct ControlWorkspace<const N: usize> {
     stack: StackWorkspace<N>,
-    /// The limits and band of the lock of D26, if the law slides along them.
-    lock: Option<(JointLimits<N>, f64)>,
+    /// How the law meets the hard joint limits.
+    hard_limits: HardLimits<N>,
     transition: Transition<N>,
     output: ControlOutput<N>,
+}
+
+/// How the law meets the hard joint limits.
+#[derive(Debug, Clone)]
+enum HardLimits<const N: usize> {
+    /// Not at all in the law: the stack law of the paper (the avoidance cost keeps away from them).
+    Ignored,
+    /// The lock of D26: the limits and the band.
+    Lock(JointLimits<N>, f64),
+    /// Saturation in the null space ([`sns`], theory §13).
+    Saturate(Box<SnsLaw<N>>),
 }
 
 /// The memory of the law ([`ControlWorkspace::memory`]): the transition state, the last velocity returned and the
@@ -412,7 +433,7 @@ impl<const N: usize> ControlWorkspace<N> {
     pub fn new(tasks: &[TaskValue<N>]) -> Self {
         Self {
             stack: StackWorkspace::new(tasks),
-            lock: None,
+            hard_limits: HardLimits::Ignored,
             transition: Transition::default(),
             output: ControlOutput {
                 velocity: JointVector::zeros(),
@@ -434,6 +455,7 @@ impl<const N: usize> ControlWorkspace<N> {
     /// still, and the stack and its avoidance term are solved again on the other joints
     /// ([`StackWorkspace::lock_joints`]), until no joint in the band is driven in. A change of the locked joints
     /// restarts the transition from the last velocity, as a stack change does, so the velocity stays continuous.
+    /// Replaces the saturation in the null space if it was set ([`Self::saturate_in_null_space`]).
     ///
     /// # Errors
     /// [`LawError::InvalidLockBand`] for a band outside `(0, 0.5)`.
@@ -441,8 +463,27 @@ impl<const N: usize> ControlWorkspace<N> {
         if !(band > 0.0 && band < 0.5) {
             return Err(LawError::InvalidLockBand { band });
         }
-        self.lock = Some((limits, band));
+        self.hard_limits = HardLimits::Lock(limits, band);
         Ok(())
+    }
+
+    /// The law keeps every joint velocity inside the box of `bounds` by saturation in the null space (SNS,
+    /// [theory §13](crate::theory#s13), [`sns`]): the stack's levels, then the avoidance term `−κ∇h` as a last
+    /// joint-space level, each re-solved in the joints left after saturating those that would leave the box, scaled
+    /// down only when they cannot be met. The transition of D1 is kept inside the box ([`sns::pull_into_box`]).
+    /// Replaces the lock of D26 if it was set.
+    pub fn saturate_in_null_space(&mut self, bounds: SnsBounds<N>) {
+        let (max_rows, max_levels) = self.stack.capacity();
+        self.hard_limits =
+            HardLimits::Saturate(Box::new(SnsLaw::new(bounds, max_rows, max_levels)));
+    }
+
+    /// The SNS solve of the last step, when the law saturates in the null space.
+    pub fn sns_solution(&self) -> Option<&SnsSolution<N>> {
+        match &self.hard_limits {
+            HardLimits::Saturate(sns) => Some(sns.solution()),
+            _ => None,
+        }
     }
 
     /// The joints the last step held still (D26).
@@ -540,6 +581,9 @@ pub fn control_step<'w, const N: usize>(
     }
     let mut velocity = JointVector::zeros();
     let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
+    if let HardLimits::Saturate(sns) = &workspace.hard_limits {
+        sns.keep_in_box(&law_velocity, &mut velocity);
+    }
     // Finite norms (hence finite entries): entries whose squares overflow are no velocity to send, and the
     // controller reads ‖q̇_n‖.
     let stack_norm = workspace.stack.solution().velocity().norm();
@@ -574,8 +618,31 @@ fn solve_law<const N: usize>(
         Some(cost) => cost.value_and_gradient(q, &mut gradient)?,
         None => 0.0,
     };
-    let ControlWorkspace { stack, lock, .. } = workspace;
+    let ControlWorkspace {
+        stack,
+        hard_limits,
+        output,
+        ..
+    } = workspace;
     let mut locked = [false; N];
+    if let HardLimits::Saturate(sns) = hard_limits {
+        if law.projection != AvoidanceProjection::Kernel {
+            return Err(LawError::SnsNeedsKernelProjection);
+        }
+        // The stack without bounds stays the controller's reading of the stack (‖q̇_n‖, P^A_n).
+        stack.lock_joints(&locked);
+        solve_stack(&law.stack, stack, tasks, order)?;
+        let target = cost.is_some().then(|| gradient * -law.avoidance_gain);
+        let velocity = sns.solve(
+            &law.stack,
+            tasks,
+            order,
+            target.as_ref(),
+            q,
+            &output.velocity,
+        )?;
+        return Ok((velocity, gradient, cost_value));
+    }
     // Each round that goes on locks one more joint: at most N + 1 solves.
     loop {
         stack.lock_joints(&locked);
@@ -584,9 +651,12 @@ fn solve_law<const N: usize>(
         if cost.is_some() {
             law_velocity += law.avoidance_term(solution, tasks, order, &gradient)?;
         }
-        let pressed = lock.as_ref().is_some_and(|(limits, band)| {
-            limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
-        });
+        let pressed = match hard_limits {
+            HardLimits::Lock(limits, band) => {
+                limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
+            }
+            HardLimits::Ignored | HardLimits::Saturate(_) => false,
+        };
         if !pressed {
             return Ok((law_velocity, gradient, cost_value));
         }
@@ -594,211 +664,4 @@ fn solve_law<const N: usize>(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::avoidance::JointLimits;
-    use crate::task::TaskJacobian;
-    use nalgebra::{DVector, Vector3};
-
-    /// A full-rank 3-row task on 3 joints with a large error, and joint 1 deep in its activation band.
-    fn full_rank_case() -> ([TaskValue<3>; 1], JointLimits<3>, Vector3<f64>) {
-        let jacobian =
-            TaskJacobian::<3>::from_row_slice(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 1.0]);
-        let task =
-            TaskValue::from_parts("t", DVector::from_vec(vec![0.9, -0.4, 0.5]), jacobian, 0.5)
-                .unwrap();
-        let limits = JointLimits::new(Vector3::repeat(-1.0), Vector3::repeat(1.0), 0.1).unwrap();
-        ([task], limits, Vector3::new(0.0, 0.95, 0.0))
-    }
-
-    fn law_of(
-        projection: AvoidanceProjection,
-        case: &([TaskValue<3>; 1], JointLimits<3>, Vector3<f64>),
-    ) -> (Vector3<f64>, Vector3<f64>) {
-        let (tasks, limits, q) = case;
-        let law = ControlLaw::new(10.0, 0.5)
-            .unwrap()
-            .with_avoidance_projection(projection)
-            .unwrap();
-        let mut workspace = ControlWorkspace::new(tasks);
-        let cost: &dyn Cost<3> = limits;
-        let law_velocity = *control_step(
-            &law,
-            &mut workspace,
-            tasks,
-            &[0],
-            Some(cost),
-            q,
-            1.0,
-            StackChange::Unchanged,
-        )
-        .unwrap()
-        .law();
-        (
-            law_velocity,
-            law_velocity - workspace.stack_solution().velocity(),
-        )
-    }
-
-    /// D16: with a full-rank task the kernel projector is zero, the norm-preserving one is not, and its avoidance term
-    /// is orthogonal to `Jᵀe`: it leaves `d‖e‖²/dt = 2 eᵀ J q̇` to the task.
-    #[test]
-    fn norm_preserving_projection_acts_without_changing_the_error_norm_rate() {
-        let case = full_rank_case();
-        let (_, kernel) = law_of(AvoidanceProjection::Kernel, &case);
-        assert_eq!(kernel.norm(), 0.0);
-        let (_, large) = law_of(AvoidanceProjection::VISP, &case);
-        assert!(large.norm() > 1e-3, "avoidance {large}");
-        let task = &case.0[0];
-        let rate = task.error().dot(&(task.jacobian() * large));
-        assert!(rate.abs() < 1e-15, "eᵀ J (avoidance) = {rate}");
-        // Below the lower bound of the sigmoid, the kernel projector alone: zero again.
-        let far = AvoidanceProjection::NormPreserving {
-            lower: 2.0,
-            upper: 3.0,
-        };
-        assert_eq!(law_of(far, &case).1.norm(), 0.0);
-    }
-
-    /// D26: the full-rank task drives joint 1 (q = 0.95) towards its upper limit 1. Once joint 1 is within the lock band
-    /// the law holds it still, with either projection, and solves the task on the other two joints; the step that
-    /// locks it starts a transition from the last velocity (`q̇(τ⁺) = q̇(τ⁻)`); a joint the law moves away from its
-    /// limit is not locked; bands outside `(0, 0.5)` are refused.
-    #[test]
-    fn a_joint_pressed_into_its_limit_is_locked_and_the_transition_restarts() {
-        #[allow(clippy::too_many_arguments)]
-        fn step(
-            law: &ControlLaw,
-            workspace: &mut ControlWorkspace<3>,
-            tasks: &[TaskValue<3>],
-            cost: Option<&dyn Cost<3>>,
-            q: Vector3<f64>,
-            time: f64,
-            change: StackChange,
-        ) -> ControlOutput<3> {
-            control_step(law, workspace, tasks, &[0], cost, &q, time, change)
-                .unwrap()
-                .clone()
-        }
-        let (tasks, limits, _) = full_rank_case();
-        let at_limit = Vector3::new(0.0, 1.0 - 1e-3, 0.0);
-        for projection in [AvoidanceProjection::Kernel, AvoidanceProjection::VISP] {
-            let law = ControlLaw::new(10.0, 0.5)
-                .unwrap()
-                .with_avoidance_projection(projection)
-                .unwrap();
-            let mut workspace = ControlWorkspace::new(&tasks);
-            workspace.lock_at_limits(limits.clone(), 1e-3).unwrap();
-            let cost: Option<&dyn Cost<3>> = Some(&limits);
-            let inside = Vector3::new(0.0, 0.95, 0.0);
-            // Away from the limit: nothing locked; the law drives joint 1 up.
-            let free = step(
-                &law,
-                &mut workspace,
-                &tasks,
-                cost,
-                inside,
-                0.01,
-                StackChange::Changed,
-            );
-            assert!(free.law()[1] > 0.0, "{:?}", free.law());
-            let settled = step(
-                &law,
-                &mut workspace,
-                &tasks,
-                cost,
-                inside,
-                10.0,
-                StackChange::Unchanged,
-            );
-            assert_eq!(workspace.locked_joints(), &[false; 3]);
-            // Within 1e−3 of its range (2e−3) from the limit: locked.
-            let locked = step(
-                &law,
-                &mut workspace,
-                &tasks,
-                cost,
-                at_limit,
-                10.01,
-                StackChange::Unchanged,
-            );
-            assert_eq!(workspace.locked_joints(), &[false, true, false]);
-            assert_eq!(locked.law()[1], 0.0);
-            assert!((locked.law() - settled.law()).norm() > 0.1);
-            // The transition restarted: the velocity is the last one, not the new law.
-            assert!((locked.velocity() - settled.velocity()).norm() < 1e-12);
-            // The task in least squares on joints 0 and 2: the residual of J q̇_n = −λ e is orthogonal to their columns.
-            let jacobian = tasks[0].jacobian();
-            let residual =
-                jacobian * workspace.stack_solution().velocity() + tasks[0].error() * 0.5;
-            for column in [0, 2] {
-                assert!(jacobian.column(column).dot(&residual).abs() < 1e-12);
-            }
-        }
-        // Driven away from the limit, the joint is not locked.
-        let task = &tasks[0];
-        let reversed =
-            [TaskValue::from_parts("t", -task.error(), task.jacobian().clone(), 0.5).unwrap()];
-        let law = ControlLaw::new(10.0, 0.0).unwrap();
-        let mut workspace = ControlWorkspace::new(&reversed);
-        workspace.lock_at_limits(limits.clone(), 1e-3).unwrap();
-        let away = step(
-            &law,
-            &mut workspace,
-            &reversed,
-            None,
-            at_limit,
-            0.01,
-            StackChange::Changed,
-        );
-        assert!(away.law()[1] < 0.0);
-        assert_eq!(workspace.locked_joints(), &[false; 3]);
-        for band in [0.0, -1e-3, 0.5, f64::NAN] {
-            assert!(matches!(
-                workspace.lock_at_limits(limits.clone(), band),
-                Err(LawError::InvalidLockBand { .. })
-            ));
-        }
-    }
-
-    #[test]
-    fn norm_preserving_projection_is_checked() {
-        for (lower, upper) in [
-            (0.5, 0.5),
-            (-0.1, 0.7),
-            (0.1, f64::INFINITY),
-            (f64::NAN, 1.0),
-        ] {
-            let projection = AvoidanceProjection::NormPreserving { lower, upper };
-            let law = ControlLaw::new(10.0, 0.5)
-                .unwrap()
-                .with_avoidance_projection(projection);
-            assert!(
-                matches!(law, Err(LawError::InvalidProjectionBounds { .. })),
-                "{lower} .. {upper}"
-            );
-        }
-        let (tasks, limits, q) = full_rank_case();
-        let two = [tasks[0].clone(), tasks[0].clone()];
-        let law = ControlLaw::new(10.0, 0.5)
-            .unwrap()
-            .with_avoidance_projection(AvoidanceProjection::VISP)
-            .unwrap();
-        let mut workspace = ControlWorkspace::new(&two);
-        let cost: &dyn Cost<3> = &limits;
-        let result = control_step(
-            &law,
-            &mut workspace,
-            &two,
-            &[0, 1],
-            Some(cost),
-            &q,
-            0.0,
-            StackChange::Changed,
-        );
-        assert_eq!(
-            result.unwrap_err(),
-            LawError::NormPreservingNeedsOneLevel { levels: 2 }
-        );
-    }
-}
+mod tests;

@@ -41,6 +41,7 @@ use crate::controller::{
 };
 use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::feature::{FeatureError, Observation};
+use crate::law::sns::SnsBounds;
 use crate::law::{ControlLaw, LawError};
 use crate::math::{JointVector, KinematicJacobian};
 use crate::measurement::{
@@ -1334,6 +1335,9 @@ pub struct Drive<'a> {
     /// [D23](crate::theory#d23)): the full method's image points, which take the place of the last task when the
     /// features settle away from the desired image. Until then its error does not count for convergence.
     pub reserve_task: bool,
+    /// Whether the law saturates in the null space ([theory §13](crate::theory#s13)): every velocity inside the box of
+    /// the joint limits, the robot's velocity limits and the period.
+    pub saturate_in_null_space: bool,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget, and keeps every record
@@ -1406,6 +1410,18 @@ pub fn simulate_with<const N: usize>(
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }
+    let max_velocity = JointVector::<N>::from_fn(|i, _| {
+        if scene.chain.joints()[i].kind().is_rotational() {
+            parameters.max_revolute_velocity_rad_s
+        } else {
+            parameters.max_prismatic_velocity_m_s
+        }
+    });
+    if drive.saturate_in_null_space {
+        let bounds = SnsBounds::new(scene.limits.clone(), max_velocity, parameters.period)
+            .map_err(|e| ControllerError::Law(e.into()))?;
+        controller = controller.with_null_space_saturation(bounds);
+    }
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
     // avoidance cost and guards its removals (D6 (d)).
     let default_visibility = match &scene.visibility {
@@ -1429,13 +1445,6 @@ pub fn simulate_with<const N: usize>(
         (Some(visibility), _) | (None, Some(visibility)) => Some(visibility as &dyn Cost<N>),
         (None, None) => None,
     };
-    let max_velocity = JointVector::<N>::from_fn(|i, _| {
-        if scene.chain.joints()[i].kind().is_rotational() {
-            parameters.max_revolute_velocity_rad_s
-        } else {
-            parameters.max_prismatic_velocity_m_s
-        }
-    });
     let mut workspace = KinematicsWorkspace::new();
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.

@@ -242,6 +242,11 @@ impl<const N: usize> StackWorkspace<N> {
         }
     }
 
+    /// The largest task (rows) and the deepest stack (levels) this workspace was sized for.
+    pub fn capacity(&self) -> (usize, usize) {
+        (self.limited.nrows(), self.svds.len())
+    }
+
     /// The result of the last solve (unspecified after a failed one).
     pub fn solution(&self) -> &StackSolution<N> {
         &self.solution
@@ -273,29 +278,7 @@ pub fn solve_stack<'w, const N: usize>(
     order: &[usize],
 ) -> Result<&'w StackSolution<N>, StackError> {
     parameters.validate()?;
-    for (level, &task) in order.iter().enumerate() {
-        if task >= tasks.len() {
-            return Err(StackError::UnknownTask {
-                level,
-                task,
-                available: tasks.len(),
-            });
-        }
-        if let Some(first_level) = order[..level].iter().position(|&t| t == task) {
-            return Err(StackError::DuplicateTask {
-                task,
-                first_level,
-                level,
-            });
-        }
-    }
-    if order.len() > workspace.svds.len() {
-        return Err(StackError::CapacityExceeded {
-            what: "levels",
-            found: order.len(),
-            capacity: workspace.svds.len(),
-        });
-    }
+    check_order(order, tasks.len(), workspace.svds.len())?;
     let StackWorkspace {
         limited,
         residual,
@@ -412,7 +395,40 @@ pub fn solve_stack<'w, const N: usize>(
     Ok(solution)
 }
 
-fn checked_task<const N: usize>(
+/// Checks a stack order against a task list of `available` tasks and a workspace of `capacity` levels: every index
+/// names a task, none twice, and the levels fit.
+pub(crate) fn check_order(
+    order: &[usize],
+    available: usize,
+    capacity: usize,
+) -> Result<(), StackError> {
+    for (level, &task) in order.iter().enumerate() {
+        if task >= available {
+            return Err(StackError::UnknownTask {
+                level,
+                task,
+                available,
+            });
+        }
+        if let Some(first_level) = order[..level].iter().position(|&t| t == task) {
+            return Err(StackError::DuplicateTask {
+                task,
+                first_level,
+                level,
+            });
+        }
+    }
+    if order.len() > capacity {
+        return Err(StackError::CapacityExceeded {
+            what: "levels",
+            found: order.len(),
+            capacity,
+        });
+    }
+    Ok(())
+}
+
+pub(crate) fn checked_task<const N: usize>(
     tasks: &[TaskValue<N>],
     level: usize,
     index: usize,

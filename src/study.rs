@@ -301,13 +301,13 @@ pub struct DrawResult {
 }
 
 impl DrawResult {
-    /// `true` when a baseline (a method other than the full one) converged on this draw, and every baseline that
+    /// `true` when a paper baseline ([`RunKind::is_paper_baseline`]) converged on this draw, and every baseline that
     /// converged touched a hard limit on the way ([`MethodResult::converged_at_limit`]).
     pub fn baselines_converged_only_at_limit(&self) -> bool {
         let mut baselines = self
             .methods
             .iter()
-            .filter(|m| m.method != RunKind::FullMethod && m.converged())
+            .filter(|m| m.method.is_paper_baseline() && m.converged())
             .peekable();
         baselines.peek().is_some() && baselines.all(MethodResult::converged_at_limit)
     }

@@ -122,6 +122,7 @@
 
 use crate::avoidance::{Cost, CostError, JointLimits};
 use crate::bounds::DURATION_S;
+use crate::law::sns::SnsBounds;
 use crate::law::{
     control_step, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
 };
@@ -140,7 +141,9 @@ pub use events::{
     ControllerStatus, ControllerStep, EventKind, ReinsertionReport, ReinsertionTest, RemovalReport,
     StackEvent, TaskCriteria,
 };
-pub use parameters::{ControllerError, ControllerParameters, DecisionRule, RemovalCriterion};
+pub use parameters::{
+    ControllerError, ControllerParameters, DecisionRule, HardLimitRule, RemovalCriterion,
+};
 
 /// The controller's phase: what it may do at the next iteration ([theory §6.6](crate::theory#s6-6)). Its
 /// transitions are made in one place each: Sequencing → Recentring by the restart (D29, `recovery.rs`),
@@ -351,6 +354,13 @@ impl<const N: usize> StackController<N> {
         }
         self.limits = Some(limits);
         Ok(self)
+    }
+
+    /// The controller whose law saturates in the null space within `bounds` ([theory §13](crate::theory#s13),
+    /// [`ControlWorkspace::saturate_in_null_space`]) instead of locking joints (D26).
+    pub fn with_null_space_saturation(mut self, bounds: SnsBounds<N>) -> Self {
+        self.law_workspace.saturate_in_null_space(bounds);
+        self
     }
 
     /// The controller with the last task of the list held in reserve (D23): it is not pushed in sequence; once the

@@ -68,6 +68,18 @@ pub enum DecisionRule {
     Paper,
 }
 
+/// How the full method keeps its joints inside their hard limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HardLimitRule {
+    /// The braking of D25 before a limit and the lock of D26 along it (default).
+    #[default]
+    BrakeAndLock,
+    /// Saturation in the null space ([theory §13](crate::theory#s13)) in place of both: every velocity inside the
+    /// box of the limits, the robot's velocity limits and the period. A measured alternative, not the default.
+    SaturateInNullSpace,
+}
+
 /// The thresholds of the controller, with their units. Immutable once the controller is built.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -210,6 +222,9 @@ pub struct ControllerParameters {
     /// `T_restart` (s): the recentring ends after this long even if a joint has not reached the middle of its range
     /// (D29; default 5 s, the stall timeout's).
     pub restart_timeout: f64,
+    /// How the full method keeps the joints inside their hard limits: the braking and the lock (D25, D26, default), or
+    /// saturation in the null space (theory §13), which then replaces both (`braking_rate` and `lock_band` unused).
+    pub hard_limit_rule: HardLimitRule,
 }
 
 impl Default for ControllerParameters {
@@ -240,6 +255,7 @@ impl Default for ControllerParameters {
             restart_rate: 1.0,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
+            hard_limit_rule: HardLimitRule::BrakeAndLock,
         }
     }
 }

@@ -158,7 +158,8 @@ pub fn write_scenario_experiment_with(
     crate::scenario::with_joint_count(scenario.joint_count()?, write)?
 }
 
-/// Runs the four runs of [theory §9](crate::theory#s9) on `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
+/// Runs the four runs of [theory §9](crate::theory#s9), then SNS as an extra row ([theory §13](crate::theory#s13)), on
+/// `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
 /// `summary.json` into `out_dir`, and returns the summary.
 ///
 /// # Errors
@@ -190,7 +191,7 @@ pub fn write_experiment_with<const N: usize>(
     #[cfg(feature = "plot")]
     let joint_names = experiment.scene.chain().joint_names();
     let mut runs = Vec::new();
-    for kind in RunKind::ALL {
+    for kind in RunKind::SELECTABLE {
         let run = experiment.run(&scenario.settings(), kind)?;
         #[cfg(feature = "plot")]
         {

@@ -220,6 +220,10 @@ pub enum RunKind {
     /// `stack_controller` in outputs.
     #[serde(rename = "stack_controller")]
     FullMethod,
+    /// Saturation in the null space ([theory §13](crate::theory#s13)): tasks pushed one by one as by the full method,
+    /// the joint-limit cost as the last level, every joint velocity kept inside the box of the position and velocity
+    /// limits; no removal, no braking, no lock. Not one of the paper's methods.
+    Sns,
 }
 
 impl RunKind {
@@ -231,14 +235,36 @@ impl RunKind {
         Self::FullMethod,
     ];
 
-    /// The method's name in outputs: `classical`, `stack`, `stack_gradient`, `stack_controller` (the full method).
+    /// Every method a scenario or a study can run: the paper's four, then SNS.
+    pub const SELECTABLE: [RunKind; 5] = [
+        Self::Classical,
+        Self::Stack,
+        Self::StackGradient,
+        Self::FullMethod,
+        Self::Sns,
+    ];
+
+    /// The method's name in outputs: `classical`, `stack`, `stack_gradient`, `stack_controller` (the full method),
+    /// `sns`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Classical => "classical",
             Self::Stack => "stack",
             Self::StackGradient => "stack_gradient",
             Self::FullMethod => "stack_controller",
+            Self::Sns => "sns",
         }
+    }
+
+    /// The method named `name` ([`Self::name`]) among [`Self::SELECTABLE`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::SELECTABLE.into_iter().find(|k| k.name() == name)
+    }
+
+    /// One of the paper's three baselines (classical, stack, stack + gradient): the methods the full method's
+    /// "covered" and "worse than stack + gradient" columns are measured against.
+    pub fn is_paper_baseline(self) -> bool {
+        matches!(self, Self::Classical | Self::Stack | Self::StackGradient)
     }
 }
 

@@ -5,7 +5,7 @@ use super::{invalid, Experiment, RunKind, ScenarioError};
 use super::{AvoidanceSpec, InteractionKind, TasksSpec, VisibilitySpec};
 use crate::avoidance::CostError;
 use crate::camera::ImagePoint;
-use crate::controller::{ControllerParameters, RemovalCriterion};
+use crate::controller::{ControllerParameters, HardLimitRule, RemovalCriterion};
 use crate::depth::DepthSource;
 use crate::feature::Observation;
 use crate::law::ControlLaw;
@@ -38,7 +38,8 @@ pub struct Settings {
     /// The joint-limit cost's activation ratio `ρ`, the avoidance gain `κ` and the transition gain `μ`.
     pub avoidance: AvoidanceSpec,
     /// The stack controller's thresholds. Only the full method removes tasks, brakes (`braking_rate`) and locks
-    /// (`lock_band`); `allow_removal` must stay `true` (the [`RunKind`] decides removal).
+    /// (`lock_band`), or saturates in the null space instead (`hard_limit_rule`); `allow_removal` must stay `true`
+    /// (the [`RunKind`] decides removal).
     pub controller: ControllerParameters,
     /// Period, budget, convergence threshold, image margin, velocity limits.
     pub simulation: SimulationParameters,
@@ -335,7 +336,10 @@ impl Settings {
             None => Vec::new(),
         };
         let sensing = sensing.map(|s| s.with_true_tasks(&true_tasks));
-        let avoid = matches!(kind, RunKind::StackGradient | RunKind::FullMethod);
+        let avoid = matches!(
+            kind,
+            RunKind::StackGradient | RunKind::FullMethod | RunKind::Sns
+        );
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
         let adaptive_gain = self.adaptive_gain()?;
         let max_gain = match (kind, adaptive_gain) {
@@ -360,14 +364,18 @@ impl Settings {
         let law = ControlLaw::with_stack_parameters(stack, mu, kappa)?;
         // The baselines are the paper's laws as they are: no removal, no braking before the limits (D25) and no
         // lock along them (D26).
+        let saturate_in_null_space = kind == RunKind::Sns
+            || (full_method
+                && self.controller.hard_limit_rule == HardLimitRule::SaturateInNullSpace);
+        let brake_and_lock = full_method && !saturate_in_null_space;
         let controller = ControllerParameters {
             allow_removal: full_method,
-            braking_rate: if full_method {
+            braking_rate: if brake_and_lock {
                 self.controller.braking_rate
             } else {
                 f64::INFINITY
             },
-            lock_band: if full_method {
+            lock_band: if brake_and_lock {
                 self.controller.lock_band
             } else {
                 0.0
@@ -384,6 +392,7 @@ impl Settings {
             sensing: sensing.as_ref(),
             adaptive_gain,
             reserve_task: full_method,
+            saturate_in_null_space,
         };
         Ok(simulate_with(
             &scene,

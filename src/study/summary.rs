@@ -21,7 +21,7 @@ pub(super) fn summarize(
     let any_baseline = |d: &DrawResult| {
         d.methods
             .iter()
-            .any(|m| m.method != RunKind::FullMethod && m.converged())
+            .any(|m| m.method.is_paper_baseline() && m.converged())
     };
     let only_at_limit = DrawResult::baselines_converged_only_at_limit;
     let summaries = methods

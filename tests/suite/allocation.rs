@@ -9,6 +9,7 @@ use servostack::camera::{project_points, ImagePoint};
 use servostack::feature::{
     AreaNormalization, Centroid, DiagonalAngle, Feature, FeatureSet, InteractionSource, Observation,
 };
+use servostack::law::sns::SnsBounds;
 use servostack::law::{control_step, ControlLaw, ControlWorkspace, StackChange};
 use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
@@ -24,6 +25,20 @@ fn the_counter_sees_allocations() {
 /// steps, evaluating the tasks and running the control step allocates nothing.
 #[test]
 fn steady_state_stack_solve_with_avoidance_allocates_nothing() {
+    linear_stack_allocates_nothing(None);
+}
+
+/// The same with saturation in the null space, the velocity limits active at the start: allocation-free too, and every
+/// step stays inside the joint limits.
+#[test]
+fn steady_state_sns_step_allocates_nothing() {
+    let limits =
+        JointLimits::new(JointVector::repeat(-0.5), JointVector::repeat(0.5), 0.1).unwrap();
+    let bounds = SnsBounds::new(limits, JointVector::repeat(0.2), 0.01).unwrap();
+    linear_stack_allocates_nothing(Some(bounds));
+}
+
+fn linear_stack_allocates_nothing(saturation: Option<SnsBounds<6>>) {
     let rows = [2usize, 1, 1, 2];
     let tasks: Vec<LinearTask<6>> = rows
         .iter()
@@ -43,6 +58,10 @@ fn steady_state_stack_solve_with_avoidance_allocates_nothing() {
         JointLimits::new(JointVector::repeat(-0.5), JointVector::repeat(0.5), 0.1).unwrap();
     let law = ControlLaw::with_default_transition(&values, 0.5).unwrap();
     let mut workspace = ControlWorkspace::new(&values);
+    let saturating = saturation.is_some();
+    if let Some(bounds) = saturation {
+        workspace.saturate_in_null_space(bounds);
+    }
     let mut order: Vec<usize> = Vec::with_capacity(tasks.len());
     let mut q = JointVector::<6>::from_fn(|c, _| 0.38 - 0.15 * c as f64);
     let dt = 0.01;
@@ -73,6 +92,10 @@ fn steady_state_stack_solve_with_avoidance_allocates_nothing() {
             )
             .unwrap();
             q += out.velocity() * dt;
+            if saturating {
+                assert!(out.velocity().amax() <= 0.2, "{}", out.velocity());
+                assert!(limits.violated_joint(&q).is_none(), "{q}");
+            }
         }
     };
     run(0, 5, &mut order); // warm-up

@@ -42,6 +42,7 @@ mod scenario_fields;
 mod scenario_generate;
 mod scenarios;
 mod servo;
+mod sns;
 mod square_target;
 mod stack_properties;
 mod straight_feasible;

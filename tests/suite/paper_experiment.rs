@@ -289,3 +289,28 @@ fn the_reference_run_converges_at_its_goal_pose() {
     // The same run, iteration for iteration: only its verdict differs.
     assert_eq!(strict_run.iterations(), run.iterations());
 }
+
+/// SNS, the extra row of the experiment (not from the paper; theory §13): the same pushes as the stack with gradient,
+/// but joint 2 is held on its lower limit instead of passing it, and with no removal the fourth task stays unmet
+/// until the budget ends.
+#[test]
+fn sns_holds_joint_2_on_its_limit_with_the_fourth_task_unmet() {
+    let run = run(RunKind::Sns);
+    assert!(
+        matches!(run.outcome, Outcome::MaxIterations { .. }),
+        "{:?}",
+        run.outcome
+    );
+    assert_eq!(
+        run.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    assert!(run.min_normalized_margin() >= 0.0);
+    let (_, experiment) = scenario();
+    let end = experiment
+        .scene
+        .limits()
+        .normalized(&run.records.last().unwrap().q);
+    assert!(end[2] < 1e-6, "{end}");
+    assert!(run.final_error_norm().unwrap() > 1e-2);
+}

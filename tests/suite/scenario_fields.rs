@@ -164,7 +164,7 @@ fn leaf<'v>(value: &'v mut Value, path: &str) -> &'v mut Value {
 
 /// The values tried in place of a leaf, in order.
 fn candidates(value: &Value) -> Vec<Value> {
-    const WORDS: [&[&str]; 7] = [
+    const WORDS: [&[&str]; 8] = [
         &["desired", "previous_plane", "target_pose"],
         &["exact", "paper_approx", "desired"],
         &["auto", "paper_invariants", "side_ratios"],
@@ -172,6 +172,7 @@ fn candidates(value: &Value) -> Vec<Value> {
         &["robust", "paper"],
         &["hold", "predict"],
         &["afma6", "afma6_coupled"],
+        &["brake_and_lock", "saturate_in_null_space"],
     ];
     match value {
         Value::Float(x) => [
