@@ -6,7 +6,6 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyString;
 use pyo3::PyTypeInfo;
 use servostack::nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use servostack::scenario::RunKind;
@@ -74,11 +73,22 @@ pub fn corners(value: &Bound<'_, PyAny>) -> PyResult<Corners> {
         }
         return Ok(out);
     }
-    let pairs: Vec<Option<(f64, f64)>> = value.extract().map_err(|_| shape_error())?;
-    if pairs.len() != 4 {
+    let items: Vec<Bound<'_, PyAny>> = value.extract().map_err(|_| shape_error())?;
+    if items.len() != 4 {
         return Err(shape_error());
     }
-    out.copy_from_slice(&pairs);
+    for (corner, item) in out.iter_mut().zip(&items) {
+        *corner = if item.is_none() {
+            None
+        } else if let Ok(pair) = item.extract::<(f64, f64)>() {
+            Some(pair)
+        } else {
+            match item.extract::<Vec<f64>>().map_err(|_| shape_error())?[..] {
+                [u, v] => Some((u, v)),
+                _ => return Err(shape_error()),
+            }
+        };
+    }
     Ok(out)
 }
 
@@ -144,21 +154,18 @@ pub fn array2<'py>(
     Ok(array.into_pyarray(py))
 }
 
-/// A JSON value as Python objects (dicts, lists, numbers, strings), through Python's `json` module.
-pub fn json_to_py<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(value).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    py.import("json")?.call_method1("loads", (text,))
+/// A Rust value as Python objects (dicts for structs, lists for sequences) in its serde form.
+pub fn to_py<'py, T: serde::Serialize>(py: Python<'py>, value: &T) -> PyResult<Bound<'py, PyAny>> {
+    pythonize::pythonize(py, value).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-/// A Rust value read from Python objects as its serde form (a dict for a struct), through Python's `json` module:
-/// unknown keys and wrong types are errors naming the key (`name` says what was read).
+/// A Rust value read from Python objects as its serde form (a dict for a struct): unknown keys and wrong types are
+/// errors naming the key (`name` says what was read).
 pub fn from_py<T: serde::de::DeserializeOwned>(
     value: &Bound<'_, PyAny>,
     name: &str,
 ) -> PyResult<T> {
-    let json = value.py().import("json")?.call_method1("dumps", (value,))?;
-    let text = json.cast::<PyString>()?.to_cow()?;
-    serde_json::from_str(&text).map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
+    pythonize::depythonize(value).map_err(|e| PyValueError::new_err(format!("{name}: {e}")))
 }
 
 /// A method by name: `classical`, `stack`, `stack_gradient`, `full_method` (or its name in outputs,

@@ -81,28 +81,26 @@ enum Source<'a> {
         path: &'a Path,
         base_link: &'a str,
         tip_link: &'a str,
+        mount: Box<EyeInHand>,
     },
 }
 
 impl Source<'_> {
-    /// The chain with `N` joints.
-    fn chain<const N: usize>(&self) -> Result<SerialChain<N>, RustRobotError> {
+    /// The chain with `N` joints and the camera mount.
+    fn model<const N: usize>(&self) -> Result<(SerialChain<N>, EyeInHand), RustRobotError> {
         match self {
-            Self::Builtin(name) => builtin::by_name::<N>(name).map(|robot| robot.chain),
+            Self::Builtin(name) => {
+                builtin::by_name::<N>(name).map(|robot| (robot.chain, robot.mount))
+            }
             Self::Urdf {
                 path,
                 base_link,
                 tip_link,
-            } => SerialChain::from_urdf_file(path, base_link, tip_link),
-        }
-    }
-
-    /// The number of movable joints of the chain.
-    fn joint_count(&self) -> Result<usize, RustRobotError> {
-        match self.chain::<0>() {
-            Ok(_) => Ok(0),
-            Err(RustRobotError::JointCount { found, .. }) => Ok(found),
-            Err(error) => Err(error),
+                mount,
+            } => Ok((
+                SerialChain::from_urdf_file(path, base_link, tip_link)?,
+                **mount,
+            )),
         }
     }
 }
@@ -111,25 +109,24 @@ impl Source<'_> {
 struct Load<'a> {
     name: String,
     source: Source<'a>,
-    mount: EyeInHand,
 }
 
 impl ForJointCount for Load<'_> {
     type Output = Result<Robot, RustRobotError>;
     fn call<const N: usize>(self) -> Self::Output {
-        let chain = self.source.chain::<N>()?;
-        Ok(Robot::new(self.name, chain, self.mount))
+        let (chain, mount) = self.source.model::<N>()?;
+        Ok(Robot::new(self.name, chain, mount))
     }
 }
 
-fn load(name: String, source: Source<'_>, mount: EyeInHand) -> PyResult<Robot> {
-    let joints = source.joint_count().map_err(raise::<RobotError>)?;
-    let load = Load {
-        name,
-        source,
-        mount,
+/// The robot of `source`, its joint count read from the chain (the error of a 0-joint chain says how many it has).
+fn load(name: String, source: Source<'_>) -> PyResult<Robot> {
+    let joints = match source.model::<0>() {
+        Ok(_) => 0,
+        Err(RustRobotError::JointCount { found, .. }) => found,
+        Err(error) => return Err(raise::<RobotError>(error)),
     };
-    with_joint_count(joints, load)
+    with_joint_count(joints, Load { name, source })
         .map_err(raise::<RobotError>)?
         .map_err(raise::<RobotError>)
 }
@@ -139,20 +136,7 @@ impl Robot {
     /// A built-in robot by name (`servostack.BUILTIN_ROBOTS`), with its camera mount.
     #[staticmethod]
     fn builtin(name: &str) -> PyResult<Self> {
-        // The mount is the same whatever the joint count; the 0-joint chain only reads it.
-        let source = Source::Builtin(name);
-        let joints = source.joint_count().map_err(raise::<RobotError>)?;
-        struct Mount<'a>(&'a str);
-        impl ForJointCount for Mount<'_> {
-            type Output = Result<EyeInHand, RustRobotError>;
-            fn call<const N: usize>(self) -> Self::Output {
-                builtin::by_name::<N>(self.0).map(|robot| robot.mount)
-            }
-        }
-        let mount = with_joint_count(joints, Mount(name))
-            .map_err(raise::<RobotError>)?
-            .map_err(raise::<RobotError>)?;
-        load(name.to_owned(), source, mount)
+        load(name.to_owned(), Source::Builtin(name))
     }
 
     /// The chain of a URDF file from `base_link` to `tip_link`, with the camera at the URDF link `camera_link`
@@ -187,8 +171,9 @@ impl Robot {
             path: &path,
             base_link,
             tip_link,
+            mount: Box::new(mount),
         };
-        load(name, source, mount)
+        load(name, source)
     }
 
     /// The robot's name (the built-in's, or the URDF file's stem).

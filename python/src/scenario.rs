@@ -2,9 +2,7 @@
 //! sections), `servostack.Experiment` (the world: from a scenario or from a robot, camera, target, goal and start)
 //! and `servostack.Run` (one of the four methods run on it: outcome, events, and the records as NumPy arrays).
 
-use crate::convert::{
-    array1, array2, corners_to_py, from_py, json_to_py, pose_to_py, raise, run_kind,
-};
+use crate::convert::{array1, array2, corners_to_py, from_py, pose_to_py, raise, run_kind, to_py};
 use crate::model::{Camera, Robot};
 use crate::ScenarioError;
 use numpy::{PyArray1, PyArray2};
@@ -169,9 +167,7 @@ impl Scenario {
 
     /// The scenario's sections as a dict (edit it and pass it to `from_dict` to change a field).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let value = serde_json::to_value(&self.scenario)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        json_to_py(py, &value)
+        to_py(py, &self.scenario)
     }
 
     #[getter]

@@ -1,7 +1,7 @@
 //! The convergence-domain study (`servostack.run_study`): the four methods over families of situations drawn around
 //! a scenario, on all cores, with its summary as a dict.
 
-use crate::convert::{json_to_py, raise, run_kind};
+use crate::convert::{raise, run_kind, to_py};
 use crate::scenario::Scenario;
 use crate::StudyError;
 use pyo3::exceptions::PyValueError;
@@ -75,7 +75,7 @@ impl StudyResult {
     /// The per-family summary (`summary.json`): scenario, seed, draws per family, per family each method's counts
     /// and rates, then iterations, seconds and threads.
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        json_to_py(py, &self.result.summary_json())
+        to_py(py, &self.result.summary_json())
     }
 
     /// The success table in Markdown (as in docs/convergence_domain.md).

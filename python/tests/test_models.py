@@ -1,5 +1,7 @@
 """Robots, cameras, poses, scenarios as dicts, and the study, from Python."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,22 @@ def test_study_summary_is_a_dict(paper):
         ss.run_study(paper, draws=1, families=["nope"])
     with pytest.raises(ss.StudyError, match="draws"):
         ss.run_study(paper, draws=0)
+
+
+def test_corners_as_arrays_tuples_or_lists_give_the_same_step(paper):
+    world = paper.experiment()
+    q = world.start
+    corners = world.corners(q)
+    forms = [corners, [list(c) for c in corners], np.array(corners), tuple(corners)]
+    velocities = [ss.VisualServo.from_scenario(paper).step(0.0, form, q) for form in forms]
+    for v in velocities[1:]:
+        np.testing.assert_array_equal(v, velocities[0])
+
+
+def test_infinite_values_pass_through_dicts(paper):
+    """+inf is meaningful in the file format (no velocity limit, the escape switched off) and survives a dict."""
+    sections = paper.to_dict()
+    sections["simulation"]["max_prismatic_velocity_m_s"] = math.inf
+    assert ss.Scenario.from_dict(sections).to_dict()["simulation"]["max_prismatic_velocity_m_s"] == math.inf
+    robot, camera = ss.Robot.builtin("afma6"), ss.Camera(600.0, 600.0, 320.0, 240.0, 640.0, 480.0)
+    ss.VisualServo(robot, camera, (0.2, 0.1), ss.pose([0.0, 0.0, 0.5]), controller={"escape_error": math.inf})
