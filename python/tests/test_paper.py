@@ -7,6 +7,7 @@ task at 300, removes a_n at 351, puts it back at 1268, converges at 2777).
 """
 
 import numpy as np
+import pytest
 
 import servostack as ss
 
@@ -119,3 +120,32 @@ def test_readme_your_robot_converges_after_1598_iterations(repo):
     run = experiment.run("full_method")
     assert (run.outcome, run.iterations) == ("converged", 1598)
     assert [e["kind"] for e in run.events] == ["push"] * 4
+
+
+def test_seven_joints_the_loop_makes_the_run_and_the_full_method_converges(repo):
+    """rail7_limits.toml (7 joints): the classical law hits a limit, the full method removes a task, puts it back and
+    converges (docs/paper_experiment.md), and the Python loop makes that run step for step."""
+    scenario = ss.Scenario.from_file(repo / "assets/scenarios/rail7_limits.toml")
+    assert scenario.joint_count == 7
+    assert scenario.run("classical").outcome == "joint_limit"
+    run = scenario.run("full_method")
+    assert run.outcome == "converged" and run.q.shape == (run.iterations, 7)
+    kinds = [e["kind"] for e in run.events]
+    assert "remove" in kinds and "reinsert" in kinds
+    world, servo = scenario.experiment(), ss.VisualServo.from_scenario(scenario)
+    q, dt = world.start, scenario.period
+    for k in range(10_000):
+        v = servo.step(k * dt, world.corners(q), q)
+        if servo.converged:
+            break
+        q = q + v * dt
+    assert servo.converged and k + 1 == run.iterations
+    assert story(servo.events) == story(run.events)
+
+
+def test_a_scenario_the_servo_does_not_model_is_refused_by_name(repo):
+    for name, section in [("obstacle_afma6.toml", "obstacles"), ("paper_afma6_noisy_camera.toml", "measurement")]:
+        scenario = ss.Scenario.from_file(repo / "assets/scenarios" / name)
+        with pytest.raises(ss.ServoError, match=section):
+            ss.VisualServo.from_scenario(scenario)
+        assert scenario.run("full_method").outcome  # the scenario itself runs
