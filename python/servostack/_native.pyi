@@ -152,7 +152,7 @@ class Scenario:
     def joint_count(self) -> int: ...
     def experiment(self) -> Experiment: ...
     def run(self, method: str) -> Run:
-        """method: classical, stack, stack_gradient or full_method."""
+        """method: classical, stack, stack_gradient, full_method or sns."""
 
 class Experiment:
     def __init__(

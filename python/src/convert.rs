@@ -169,17 +169,14 @@ pub fn from_py<T: serde::de::DeserializeOwned>(
 }
 
 /// A method by name: `classical`, `stack`, `stack_gradient`, `full_method` (or its name in outputs,
-/// `stack_controller`).
+/// `stack_controller`), `sns`.
 pub fn run_kind(name: &str) -> PyResult<RunKind> {
     if name == "full_method" {
         return Ok(RunKind::FullMethod);
     }
-    RunKind::ALL
-        .into_iter()
-        .find(|kind| kind.name() == name)
-        .ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "unknown method {name:?}: expected classical, stack, stack_gradient or full_method"
-            ))
-        })
+    RunKind::from_name(name).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "unknown method {name:?}: expected classical, stack, stack_gradient, full_method or sns"
+        ))
+    })
 }

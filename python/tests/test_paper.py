@@ -41,6 +41,18 @@ def test_the_baselines_hit_the_joint_2_limit_where_the_paper_experiment_says(pap
     assert story(gradient.events)[-1] == (997, "push", "third_order")
 
 
+def test_sns_holds_joint_2_on_its_limit_where_the_stack_with_gradient_passes_it(paper):
+    # Saturation in the null space (theory §13): the same pushes as the stack with gradient, but every velocity stays
+    # inside the box of the limits, so joint 2 is held on its lower limit and, with no removal, the fourth task stays
+    # unmet until the budget ends.
+    run = paper.run("sns")
+    assert run.outcome == "max_iterations", run.outcome_detail
+    assert run.stacked_at_end == ["centroid", "angle", "area", "third_order"]
+    lower, upper = run.limits
+    assert np.all(run.q >= lower) and np.all(run.q <= upper)
+    assert run.normalized_q[-1, 2] < 1e-6
+
+
 def test_full_method_run_converges_with_the_documented_events_and_its_records_as_arrays(paper):
     run = paper.run("full_method")
     assert run.outcome == "converged"
