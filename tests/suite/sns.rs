@@ -1,7 +1,7 @@
-//! Saturation in the null space (theory §10): the stack's velocity when no bound is active, every joint inside its box
-//! when bounds are, each level's task scaling factor the largest that the box and the levels above allow (against a
-//! brute-force vertex enumeration of that linear program), the box built from the limits, continuity of the law at a
-//! stack change, and clear errors for bad input.
+//! Saturation in the null space (theory §13): the stack's velocity when no bound is active, every joint inside its box
+//! when bounds are, the first level's task scaling factor the largest the box allows and a lower level's short of its
+//! largest only rarely (against a brute-force vertex enumeration of that linear program), the box built from the
+//! limits, continuity of the law at a stack change, and clear errors for bad input.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 use proptest::prelude::*;
@@ -16,19 +16,7 @@ use servostack::sim::Outcome;
 use servostack::stack::{solve_stack, StackError, StackParameters, StackWorkspace};
 use servostack::task::{TaskJacobian, TaskValue};
 
-/// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2].
-fn random_tasks<const N: usize>(data: &[f64], rows: &[usize]) -> Vec<TaskValue<N>> {
-    let mut cursor = data.iter().copied().cycle();
-    rows.iter()
-        .enumerate()
-        .map(|(i, &m)| {
-            let jacobian = TaskJacobian::<N>::from_fn(m, |_, _| cursor.next().unwrap());
-            let error = DVector::from_fn(m, |_, _| cursor.next().unwrap());
-            let gain = 1.1 + 0.9 * cursor.next().unwrap();
-            TaskValue::from_parts(&format!("t{i}"), error, jacobian, gain).unwrap()
-        })
-        .collect()
-}
+use crate::stack_properties::random_tasks;
 
 fn sns<const N: usize>(
     tasks: &[TaskValue<N>],

@@ -10,8 +10,8 @@ use servostack::math::{JointMatrix, JointVector};
 use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
 use servostack::task::{TaskJacobian, TaskValue};
 
-/// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2].
-fn random_tasks<const N: usize>(data: &[f64], rows: &[usize]) -> Vec<TaskValue<N>> {
+/// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2] (also the SNS tests').
+pub(crate) fn random_tasks<const N: usize>(data: &[f64], rows: &[usize]) -> Vec<TaskValue<N>> {
     let mut cursor = data.iter().copied().cycle();
     rows.iter()
         .enumerate()
