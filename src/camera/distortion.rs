@@ -1,27 +1,35 @@
-//! Brown–Conrady lens distortion on normalised image coordinates (the "plumb bob" model of OpenCV, ROS and ViSP).
+//! Lens distortion on normalised image coordinates: the Brown–Conrady "plumb bob" model of OpenCV, ROS and ViSP,
+//! with OpenCV's rational and thin-prism extensions.
 //!
 //! For undistorted normalised coordinates `(x, y)` (camera frame, `x = X/Z`, `y = Y/Z`) and `r² = x² + y²`, the
-//! distorted normalised coordinates are
+//! distorted normalised coordinates are (OpenCV's `projectPoints`, without its tilt)
 //!
 //! ```text
-//! radial = 1 + k1 r² + k2 r⁴ + k3 r⁶
-//! x_d = x · radial + 2 p1 x y + p2 (r² + 2 x²)
-//! y_d = y · radial + p1 (r² + 2 y²) + 2 p2 x y
+//! radial = (1 + k1 r² + k2 r⁴ + k3 r⁶) / (1 + k4 r² + k5 r⁴ + k6 r⁶)
+//! x_d = x · radial + 2 p1 x y + p2 (r² + 2 x²) + s1 r² + s2 r⁴
+//! y_d = y · radial + p1 (r² + 2 y²) + 2 p2 x y + s3 r² + s4 r⁴
 //! ```
 //!
 //! and the measured pixel is `u = cx + fx x_d`, `v = cy + fy y_d` ([`super::CalibratedCamera`]). The coefficients are
-//! dimensionless and are stored in OpenCV's order `(k1, k2, p1, p2, k3)`.
+//! dimensionless and are kept in OpenCV's order `(k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4)`. Three models, as
+//! OpenCV's coefficient lists name them: the plumb bob `(k1, k2, p1, p2[, k3])` (4 or 5 coefficients, the others 0),
+//! the rational model (8: `k4, k5, k6` added) and the thin-prism model (12: `s1 … s4` added). OpenCV's 14-coefficient
+//! tilted model is accepted only with zero tilt `τx = τy = 0`, where it is the thin-prism model
+//! ([`CameraError::TiltedDistortion`] otherwise).
 //!
 //! Undistortion inverts the map by Newton's method on `d(x, y) − (x_d, y_d) = 0` with the exact 2 × 2 Jacobian of
 //! `d`, starting from `(x_d, y_d)`; it stops when the residual is below [`UNDISTORTION_TOLERANCE`] (normalised units)
 //! and gives up after [`UNDISTORTION_MAX_ITERATIONS`] steps with [`CameraError::UndistortionFailed`].
 //!
-//! **The fold.** The radial map `r ↦ r D(r)`, `D(r) = 1 + k1 r² + k2 r⁴ + k3 r⁶`, is one-to-one only up to the
-//! first radius `r_f` where its slope `d(r D(r))/dr = 1 + 3 k1 r² + 5 k2 r⁴ + 7 k3 r⁶` reaches 0 (∞ when it never
-//! does): past it the lens folds the image back onto itself, and a pixel there has two or more preimages (or none).
+//! **The fold.** The radial map `r ↦ r R(r²)`, `R(s) = N(s)/M(s)` with `N(s) = 1 + k1 s + k2 s² + k3 s³` and
+//! `M(s) = 1 + k4 s + k5 s² + k6 s³`, is one-to-one only up to the first radius `r_f` where its slope
+//! `d(r R)/dr = P(s)/M(s)²`, `P(s) = N M + 2 s (N′ M − N M′)`, reaches 0, or where the denominator `M` does (the map
+//! has a pole there); `r_f = ∞` when neither does. For the plumb bob (`M = 1`), `P(s) = 1 + 3 k1 s + 5 k2 s² + 7 k3 s³`.
+//! Past `r_f` the lens folds the image back onto itself, and a pixel there has two or more preimages (or none).
 //! [`BrownConrady::fold_radius`] computes `r_f` once, when the coefficients are set, and undistortion refuses a
 //! preimage at or past it ([`CameraError::BeyondFold`]) — even where Newton's method converges there, as it does for
-//! a lens whose slope turns positive again (`k1 = −1, k3 = 0.5`).
+//! a lens whose slope turns positive again (`k1 = −1, k3 = 0.5`). Past the pole, [`BrownConrady::distort`] is not
+//! finite.
 
 use super::CameraError;
 
@@ -32,15 +40,20 @@ pub const UNDISTORTION_TOLERANCE: f64 = 1e-12;
 /// realistic lenses converge in 3–6 steps).
 pub const UNDISTORTION_MAX_ITERATIONS: usize = 20;
 
-/// Brown–Conrady distortion coefficients `(k1, k2, p1, p2, k3)` (dimensionless, OpenCV order): radial `k1, k2, k3`,
-/// tangential `p1, p2`. The default is no distortion.
+/// The names of OpenCV's distortion coefficients, in its order (the 14-coefficient tilted model's list).
+const COEFFICIENT_NAMES: [&str; 14] = [
+    "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tau_x", "tau_y",
+];
+
+/// Lens distortion coefficients (dimensionless, OpenCV order, module docs): radial `k1, k2, k3` over
+/// `1 + k4 r² + k5 r⁴ + k6 r⁶` (rational model), tangential `p1, p2`, thin prism `s1 … s4`. The default is no
+/// distortion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BrownConrady {
-    k1: f64,
-    k2: f64,
-    p1: f64,
-    p2: f64,
-    k3: f64,
+    /// `(k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4)`; those past `count` are 0.
+    all: [f64; 12],
+    /// The model's number of coefficients: 5 (plumb bob), 8 (rational) or 12 (thin prism).
+    count: usize,
     /// `r_f²`, the square of the fold radius (module docs), `∞` when the radial map never folds.
     fold_r2: f64,
 }
@@ -49,157 +62,251 @@ impl Default for BrownConrady {
     /// No distortion (the pinhole model), which never folds.
     fn default() -> Self {
         Self {
-            k1: 0.0,
-            k2: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
+            all: [0.0; 12],
+            count: 5,
             fold_r2: f64::INFINITY,
         }
     }
 }
 
-/// The smallest `s > 0` where `g(s) = 1 + 3 k1 s + 5 k2 s² + 7 k3 s³` (the radial map's slope at `r² = s`) reaches
-/// 0, `∞` when it stays positive. `g` is monotone between the roots of `g'(s) = 3 k1 + 10 k2 s + 21 k3 s²`, so its
-/// first sign change lies in the first of those intervals whose right end is non-positive, where bisection finds it.
-fn first_fold(k1: f64, k2: f64, k3: f64) -> f64 {
-    let g = |s: f64| 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3));
-    // The roots of g' in (0, ∞), in increasing order.
-    let (a, b, c) = (21.0 * k3, 10.0 * k2, 3.0 * k1);
-    let mut ends = [f64::INFINITY; 3];
-    if a != 0.0 {
-        let discriminant = b * b - 4.0 * a * c;
-        if discriminant >= 0.0 {
-            // The stable form: q = −(b + sign(b) √Δ)/2, roots q/a and c/q (no cancellation when |a c| ≪ b²).
-            let q = -0.5 * (b + b.signum() * discriminant.sqrt());
-            let (r1, r2) = (q / a, if q != 0.0 { c / q } else { q / a });
-            ends[0] = r1.min(r2);
-            ends[1] = r1.max(r2);
-        }
-    } else if b != 0.0 {
-        ends[0] = -c / b;
+/// A polynomial `c[0] + c[1] s + … + c[6] s⁶` in `s = r²`.
+type Polynomial = [f64; 7];
+
+fn value(p: &Polynomial, s: f64) -> f64 {
+    p.iter().rev().fold(0.0, |acc, &c| acc * s + c)
+}
+
+fn derivative(p: &Polynomial) -> Polynomial {
+    let mut d = [0.0; 7];
+    for (i, c) in p.iter().enumerate().skip(1) {
+        d[i - 1] = i as f64 * c;
     }
-    let mut low = 0.0f64;
-    for end in ends.into_iter().filter(|e| *e > 0.0) {
-        let mut high = end;
-        if high.is_infinite() {
-            // g is monotone on (low, ∞): it falls to 0 only if it falls without bound; find a finite bracket.
-            high = low.max(1.0);
-            while g(high) > 0.0 {
-                high *= 2.0;
-                if !high.is_finite() || g(high) > g(high / 2.0) {
-                    return f64::INFINITY;
-                }
+    d
+}
+
+/// The product of two cubics.
+fn product(a: &[f64; 4], b: &[f64; 4]) -> Polynomial {
+    let mut p = [0.0; 7];
+    for (i, ai) in a.iter().enumerate() {
+        for (j, bj) in b.iter().enumerate() {
+            p[i + j] += ai * bj;
+        }
+    }
+    p
+}
+
+/// Points of `(0, ∞)` in increasing order, at most 6 (a polynomial's degree).
+#[derive(Default)]
+struct Crossings {
+    at: [f64; 6],
+    len: usize,
+}
+
+impl Crossings {
+    fn as_slice(&self) -> &[f64] {
+        &self.at[..self.len]
+    }
+}
+
+/// The points of `(0, ∞)` where `p(s) > 0` turns from true to false or back, in increasing order. Between two
+/// consecutive crossings of `p′` (and `0`, `∞`) `p` is monotone, so the test flips at most once there, where bisection
+/// finds it: a recursion on the derivative down to a constant. A point where `p` (or `p′`) only touches 0 may be listed
+/// twice, which leaves the pieces between crossings monotone.
+fn crossings(p: &Polynomial) -> Crossings {
+    let mut found = Crossings::default();
+    if p[1..].iter().all(|&c| c == 0.0) {
+        return found;
+    }
+    let pieces = crossings(&derivative(p));
+    let mut low = 0.0;
+    for high in pieces.as_slice().iter().copied().chain([f64::INFINITY]) {
+        if let (Some(root), Some(slot)) = (
+            crossing_on_monotone_piece(p, low, high),
+            found.at.get_mut(found.len),
+        ) {
+            *slot = root;
+            found.len += 1;
+        }
+        low = high;
+    }
+    found
+}
+
+/// The point of `(low, high]` where `p(s) > 0` flips, `p` monotone there, if any (`high` may be `∞`); to the
+/// resolution of `f64`, on the flipped side. `None` when the flip lies past the largest `f64`.
+fn crossing_on_monotone_piece(p: &Polynomial, low: f64, high: f64) -> Option<f64> {
+    let above = |s: f64| value(p, s) > 0.0;
+    let start = above(low);
+    let mut high = high;
+    if high.is_infinite() {
+        // The sign at ∞ is the leading coefficient's; find a finite end past the flip by doubling.
+        let leading = p.iter().rev().find(|&&c| c != 0.0).copied().unwrap_or(0.0);
+        if (leading > 0.0) == start {
+            return None;
+        }
+        high = low.max(1.0);
+        while above(high) == start {
+            high *= 2.0;
+            if !high.is_finite() {
+                return None;
             }
         }
-        if g(high) <= 0.0 {
-            // To the resolution of f64: a bracket as wide as 1e308 needs about 1 100 halvings (a lens with a tiny k2
-            // has its slope's critical point there, found by the fuzz harness); the cap only guards the loop.
-            for _ in 0..2_200 {
-                let middle = 0.5 * (low + high);
-                if middle <= low || middle >= high {
-                    break;
-                }
-                if g(middle) > 0.0 {
-                    low = middle;
-                } else {
-                    high = middle;
-                }
-            }
-            return high;
-        }
-        low = end;
+    } else if above(high) == start {
+        return None;
     }
-    f64::INFINITY
+    // A bracket as wide as 1e308 needs about 1 100 halvings (a lens with a tiny k2 has its slope's critical point
+    // there, found by the fuzz harness); the cap only guards the loop.
+    let mut low = low;
+    for _ in 0..2_200 {
+        let middle = 0.5 * (low + high);
+        if middle <= low || middle >= high {
+            break;
+        }
+        if above(middle) == start {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    Some(high)
+}
+
+/// `r_f²` (module docs): the first `s > 0` where the radial slope's numerator `P(s)` or the denominator `M(s)`
+/// reaches 0, `∞` when neither does. Both are 1 at `s = 0`.
+fn fold_r2(all: &[f64; 12]) -> f64 {
+    let [k1, k2, _, _, k3, k4, k5, k6, ..] = *all;
+    let numerator = [1.0, k1, k2, k3];
+    let denominator = [1.0, k4, k5, k6];
+    let numerator_slope = [k1, 2.0 * k2, 3.0 * k3, 0.0];
+    let denominator_slope = [k4, 2.0 * k5, 3.0 * k6, 0.0];
+    let (nm, n_m, nm_) = (
+        product(&numerator, &denominator),
+        product(&numerator_slope, &denominator),
+        product(&numerator, &denominator_slope),
+    );
+    let mut slope = nm;
+    for i in 0..6 {
+        slope[i + 1] += 2.0 * (n_m[i] - nm_[i]);
+    }
+    let mut pole = [0.0; 7];
+    pole[..4].copy_from_slice(&denominator);
+    let first = |p: &Polynomial| crossings(p).as_slice().first().copied();
+    [first(&slope), first(&pole)]
+        .into_iter()
+        .flatten()
+        .fold(f64::INFINITY, f64::min)
 }
 
 impl BrownConrady {
-    /// Coefficients in OpenCV's order.
+    /// The plumb-bob model: coefficients `(k1, k2, p1, p2, k3)` in OpenCV's order.
     ///
     /// # Errors
     /// [`CameraError::InvalidDistortion`] when a coefficient is outside
     /// [`DISTORTION_COEFFICIENT`](crate::bounds::DISTORTION_COEFFICIENT) (NaN and infinities never pass).
     pub fn new(k1: f64, k2: f64, p1: f64, p2: f64, k3: f64) -> Result<Self, CameraError> {
-        let named = [("k1", k1), ("k2", k2), ("p1", p1), ("p2", p2), ("k3", k3)];
+        Self::from_coefficients(&[k1, k2, p1, p2, k3])
+    }
+
+    /// Coefficients from a list as OpenCV and calibration files write it: `(k1, k2, p1, p2)` (`k3 = 0`),
+    /// `(k1, k2, p1, p2, k3)`, the rational `(…, k3, k4, k5, k6)`, the thin-prism `(…, k6, s1, s2, s3, s4)`, or the
+    /// tilted `(…, s4, τx, τy)` with `τx = τy = 0` (loaded as the thin-prism model).
+    ///
+    /// # Errors
+    /// [`CameraError::InvalidDistortion`] for a coefficient outside
+    /// [`DISTORTION_COEFFICIENT`](crate::bounds::DISTORTION_COEFFICIENT); [`CameraError::TiltedDistortion`] for 14
+    /// coefficients with a non-zero tilt; [`CameraError::DistortionCoefficientCount`] for another count than 4, 5, 8,
+    /// 12 or 14.
+    pub fn from_coefficients(coefficients: &[f64]) -> Result<Self, CameraError> {
+        let count = match coefficients.len() {
+            4 | 5 => 5,
+            count @ (8 | 12) => count,
+            14 => 12,
+            count => return Err(CameraError::DistortionCoefficientCount { count }),
+        };
         let range = crate::bounds::DISTORTION_COEFFICIENT;
-        if let Some(&(name, value)) = named.iter().find(|(_, v)| !range.contains(*v)) {
+        if let Some((&name, &value)) = COEFFICIENT_NAMES
+            .iter()
+            .zip(coefficients)
+            .find(|(_, v)| !range.contains(**v))
+        {
             return Err(CameraError::InvalidDistortion { name, value });
         }
+        if let Some(&[tau_x, tau_y]) = coefficients.get(12..14) {
+            if tau_x != 0.0 || tau_y != 0.0 {
+                return Err(CameraError::TiltedDistortion { tau_x, tau_y });
+            }
+        }
+        let mut all = [0.0; 12];
+        for (slot, &c) in all.iter_mut().zip(coefficients) {
+            *slot = c;
+        }
         Ok(Self {
-            k1,
-            k2,
-            p1,
-            p2,
-            k3,
-            fold_r2: first_fold(k1, k2, k3),
+            all,
+            count,
+            fold_r2: fold_r2(&all),
         })
     }
 
-    /// Coefficients from a list as calibration files write it: `(k1, k2, p1, p2)` (`k3 = 0`) or
-    /// `(k1, k2, p1, p2, k3)`.
-    ///
-    /// # Errors
-    /// [`CameraError::RationalDistortion`] for 8, 12 or 14 coefficients (OpenCV's rational / thin-prism models, not
-    /// supported); [`CameraError::DistortionCoefficientCount`] for any other count but 4 or 5;
-    /// [`CameraError::InvalidDistortion`] for a non-finite coefficient.
-    pub fn from_coefficients(coefficients: &[f64]) -> Result<Self, CameraError> {
-        match *coefficients {
-            [k1, k2, p1, p2] => Self::new(k1, k2, p1, p2, 0.0),
-            [k1, k2, p1, p2, k3] => Self::new(k1, k2, p1, p2, k3),
-            _ if matches!(coefficients.len(), 8 | 12 | 14) => {
-                Err(CameraError::RationalDistortion {
-                    count: coefficients.len(),
-                })
-            }
-            _ => Err(CameraError::DistortionCoefficientCount {
-                count: coefficients.len(),
-            }),
-        }
+    /// The coefficients in OpenCV's order, as many as the model has: `[k1, k2, p1, p2, k3]` (plumb bob, also for a
+    /// list of 4), `[…, k4, k5, k6]` (rational) or `[…, s1, s2, s3, s4]` (thin prism, also for a list of 14).
+    pub fn coefficients(&self) -> &[f64] {
+        &self.all[..self.count]
     }
 
-    /// The coefficients `[k1, k2, p1, p2, k3]`.
-    pub fn coefficients(&self) -> [f64; 5] {
-        [self.k1, self.k2, self.p1, self.p2, self.k3]
-    }
-
-    /// The fold radius `r_f` (normalised units, module docs): the first radius where the radial map's slope reaches
-    /// 0, `∞` when it never does. Undistortion refuses preimages at or past it.
+    /// The fold radius `r_f` (normalised units, module docs): the first radius where the radial map's slope or its
+    /// denominator reaches 0, `∞` when neither does. Undistortion refuses preimages at or past it.
     pub fn fold_radius(&self) -> f64 {
         self.fold_r2.sqrt()
     }
 
     /// `true` when every coefficient is zero (the pinhole model).
     pub fn is_identity(&self) -> bool {
-        self.coefficients().iter().all(|&c| c == 0.0)
+        self.all.iter().all(|&c| c == 0.0)
+    }
+
+    /// `(R, dR/ds)` of the radial factor `R(s) = N(s)/M(s)` at `s = r²` (module docs).
+    fn radial(&self, r2: f64) -> (f64, f64) {
+        let [k1, k2, _, _, k3, k4, k5, k6, ..] = self.all;
+        let numerator = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        let denominator = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6));
+        let numerator_slope = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2);
+        let denominator_slope = k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2);
+        (
+            numerator / denominator,
+            (numerator_slope * denominator - numerator * denominator_slope)
+                / (denominator * denominator),
+        )
     }
 
     /// Distorted normalised coordinates `(x_d, y_d)` of undistorted ones `(x, y)` (module equation).
     pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
+        let [_, _, p1, p2, _, _, _, _, s1, s2, s3, s4] = self.all;
         let (xy, r2) = (x * y, x * x + y * y);
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let (radial, _) = self.radial(r2);
         (
-            x * radial + 2.0 * self.p1 * xy + self.p2 * (r2 + 2.0 * x * x),
-            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * xy,
+            x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x) + r2 * (s1 + s2 * r2),
+            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy + r2 * (s3 + s4 * r2),
         )
     }
 
     /// The Jacobian `∂(x_d, y_d)/∂(x, y)` of [`Self::distort`] as `[[∂x_d/∂x, ∂x_d/∂y], [∂y_d/∂x, ∂y_d/∂y]]`:
-    /// with `R = radial` and `R' = dR/d(r²) = k1 + 2 k2 r² + 3 k3 r⁴`,
-    /// `∂x_d/∂x = R + 2x² R' + 2 p1 y + 6 p2 x`, `∂x_d/∂y = 2xy R' + 2 p1 x + 2 p2 y`,
-    /// `∂y_d/∂x = 2xy R' + 2 p1 x + 2 p2 y`, `∂y_d/∂y = R + 2y² R' + 6 p1 y + 2 p2 x`.
+    /// with `R = radial`, `R' = dR/d(r²)`, `S_x = s1 + 2 s2 r²` and `S_y = s3 + 2 s4 r²`,
+    /// `∂x_d/∂x = R + 2x² R' + 2 p1 y + 6 p2 x + 2x S_x`, `∂x_d/∂y = 2xy R' + 2 p1 x + 2 p2 y + 2y S_x`,
+    /// `∂y_d/∂x = 2xy R' + 2 p1 x + 2 p2 y + 2x S_y`, `∂y_d/∂y = R + 2y² R' + 6 p1 y + 2 p2 x + 2y S_y`.
     pub fn jacobian(&self, x: f64, y: f64) -> [[f64; 2]; 2] {
+        let [_, _, p1, p2, _, _, _, _, s1, s2, s3, s4] = self.all;
         let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-        let slope = self.k1 + r2 * (2.0 * self.k2 + 3.0 * self.k3 * r2);
-        let cross = 2.0 * x * y * slope + 2.0 * self.p1 * x + 2.0 * self.p2 * y;
+        let (radial, slope) = self.radial(r2);
+        let (prism_x, prism_y) = (s1 + 2.0 * s2 * r2, s3 + 2.0 * s4 * r2);
+        let cross = 2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y;
         [
             [
-                radial + 2.0 * x * x * slope + 2.0 * self.p1 * y + 6.0 * self.p2 * x,
-                cross,
+                radial + 2.0 * x * x * slope + 2.0 * p1 * y + 6.0 * p2 * x + 2.0 * x * prism_x,
+                cross + 2.0 * y * prism_x,
             ],
             [
-                cross,
-                radial + 2.0 * y * y * slope + 6.0 * self.p1 * y + 2.0 * self.p2 * x,
+                cross + 2.0 * x * prism_y,
+                radial + 2.0 * y * y * slope + 6.0 * p1 * y + 2.0 * p2 * x + 2.0 * y * prism_y,
             ],
         ]
     }
@@ -264,6 +371,11 @@ mod tests {
     use approx::assert_relative_eq;
     use proptest::prelude::*;
 
+    /// The coefficients of a plumb-bob lens.
+    fn plumb_bob(d: &BrownConrady) -> [f64; 5] {
+        d.coefficients().try_into().expect("a plumb-bob lens")
+    }
+
     /// Hand-computed: k1 = 0.1, k2 = 0.01, p1 = 0.001, p2 = 0.002, k3 = 0.001 at (x, y) = (0.3, −0.2):
     /// r² = 0.13, radial = 1 + 0.013 + 0.000169 + 0.000002197 = 1.013171197,
     /// x_d = 0.3039513591 + 2·0.001·(−0.06) + 0.002·(0.13 + 0.18) = 0.3039513591 − 0.00012 + 0.00062 = 0.3044513591,
@@ -299,19 +411,55 @@ mod tests {
     }
 
     #[test]
-    fn coefficient_lists_of_four_and_five_are_accepted_others_named() {
+    fn coefficient_lists_of_opencv_models_are_accepted_others_named() {
         let four = BrownConrady::from_coefficients(&[0.1, -0.2, 0.01, 0.02]).unwrap();
         assert_eq!(four.coefficients(), [0.1, -0.2, 0.01, 0.02, 0.0]);
         let five = BrownConrady::from_coefficients(&[0.1, -0.2, 0.01, 0.02, 0.3]).unwrap();
         assert_eq!(five.coefficients(), [0.1, -0.2, 0.01, 0.02, 0.3]);
+        let rational: Vec<f64> = (1..=8).map(|i| f64::from(i) / 100.0).collect();
         assert_eq!(
-            BrownConrady::from_coefficients(&[0.0; 8]),
-            Err(CameraError::RationalDistortion { count: 8 })
+            BrownConrady::from_coefficients(&rational)
+                .unwrap()
+                .coefficients(),
+            rational
         );
+        let prism: Vec<f64> = (1..=12).map(|i| f64::from(i) / 100.0).collect();
         assert_eq!(
-            BrownConrady::from_coefficients(&[0.0; 3]),
-            Err(CameraError::DistortionCoefficientCount { count: 3 })
+            BrownConrady::from_coefficients(&prism)
+                .unwrap()
+                .coefficients(),
+            prism
         );
+        // Fourteen with zero tilt: the thin-prism model; with a tilt, refused by name.
+        let untilted = [&prism[..], &[0.0, 0.0]].concat();
+        assert_eq!(
+            BrownConrady::from_coefficients(&untilted)
+                .unwrap()
+                .coefficients(),
+            prism
+        );
+        let tilted = [&prism[..], &[0.0, 0.003]].concat();
+        assert_eq!(
+            BrownConrady::from_coefficients(&tilted),
+            Err(CameraError::TiltedDistortion {
+                tau_x: 0.0,
+                tau_y: 0.003
+            })
+        );
+        for count in [0, 1, 3, 6, 7, 9, 10, 11, 13, 15, 64] {
+            assert_eq!(
+                BrownConrady::from_coefficients(&vec![0.0; count]),
+                Err(CameraError::DistortionCoefficientCount { count })
+            );
+        }
+        assert!(matches!(
+            BrownConrady::from_coefficients(&[&prism[..11], &[f64::INFINITY]].concat()),
+            Err(CameraError::InvalidDistortion { name: "s4", .. })
+        ));
+        assert!(matches!(
+            BrownConrady::from_coefficients(&[&prism[..], &[0.0, f64::NAN]].concat()),
+            Err(CameraError::InvalidDistortion { name: "tau_y", .. })
+        ));
         assert!(matches!(
             BrownConrady::new(0.0, f64::NAN, 0.0, 0.0, 0.0),
             Err(CameraError::InvalidDistortion { name: "k2", .. })
@@ -340,8 +488,8 @@ mod tests {
     #[test]
     fn fold_radius_is_where_the_radial_slope_first_vanishes() {
         let slope = |d: &BrownConrady, r: f64| {
-            let s = r * r;
-            1.0 + 3.0 * d.k1 * s + 5.0 * d.k2 * s * s + 7.0 * d.k3 * s * s * s
+            let (s, [k1, k2, _, _, k3]) = (r * r, plumb_bob(d));
+            1.0 + 3.0 * k1 * s + 5.0 * k2 * s * s + 7.0 * k3 * s * s * s
         };
         // Barrel k1 = −0.2: slope 1 − 0.6 r², zero at r² = 1/0.6 (hand-computed).
         let barrel = BrownConrady::new(-0.2, 0.0, 0.0, 0.0, 0.0).unwrap();
@@ -465,9 +613,10 @@ mod tests {
     /// a measured point there has no undistorted preimage (a named error, `bad_undistortion_inputs_are_named_errors`).
     fn invertible_lens() -> impl Strategy<Value = BrownConrady> {
         lens().prop_filter("radial map invertible over the image", |d| {
-            let radial = |r: f64| r * (1.0 + d.k1 * r * r + d.k2 * r.powi(4) + d.k3 * r.powi(6));
+            let [k1, k2, _, _, k3] = plumb_bob(d);
+            let radial = |r: f64| r * (1.0 + k1 * r * r + k2 * r.powi(4) + k3 * r.powi(6));
             let slope =
-                |r: f64| 1.0 + 3.0 * d.k1 * r * r + 5.0 * d.k2 * r.powi(4) + 7.0 * d.k3 * r.powi(6);
+                |r: f64| 1.0 + 3.0 * k1 * r * r + 5.0 * k2 * r.powi(4) + 7.0 * k3 * r.powi(6);
             (0..=80).all(|i| slope(f64::from(i) / 100.0) > 0.0) && radial(0.8) > 0.6
         })
     }
@@ -489,6 +638,147 @@ mod tests {
             let (x, y) = d.undistort(xd, yd).unwrap();
             let (xr, yr) = d.distort(x, y);
             prop_assert!((xr - xd).abs() <= 1e-12 && (yr - yd).abs() <= 1e-12);
+        }
+    }
+
+    /// Rational (8) and thin-prism (12) lenses against OpenCV: the expected values are `cv2.projectPoints` (OpenCV
+    /// 5.0.0, opencv-python-headless) of the points `(0.3, −0.2, 1)` and `(−0.45, 0.35, 1)` with `K = I`, no rotation
+    /// or translation, and these coefficients.
+    #[test]
+    fn rational_and_thin_prism_distortion_match_opencv() {
+        let rational = [0.1, 0.01, 0.001, 0.002, 0.001, 0.05, -0.02, 0.003];
+        let prism = [&rational[..], &[0.004, -0.001, -0.003, 0.0005]].concat();
+        let cases = [
+            (
+                &rational[..],
+                [
+                    (0.302_587_902_384_144_3, -0.201_421_934_922_762_86),
+                    (-0.457_440_283_590_671_96, 0.356_617_442_792_744_9),
+                ],
+            ),
+            (
+                &prism[..],
+                [
+                    (0.303_091_002_384_144_3, -0.201_803_484_922_762_87),
+                    (-0.456_245_908_590_671_93, 0.355_695_255_292_744_87),
+                ],
+            ),
+        ];
+        for (coefficients, expected) in cases {
+            let d = BrownConrady::from_coefficients(coefficients).unwrap();
+            for ((x, y), (u, v)) in [(0.3, -0.2), (-0.45, 0.35)].into_iter().zip(expected) {
+                let (xd, yd) = d.distort(x, y);
+                assert_relative_eq!(xd, u, epsilon = 1e-15);
+                assert_relative_eq!(yd, v, epsilon = 1e-15);
+                let (xu, yu) = d.undistort(xd, yd).unwrap();
+                assert!((xu - x).abs() < 1e-12 && (yu - y).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn thin_prism_jacobian_matches_finite_differences() {
+        let d = BrownConrady::from_coefficients(&[
+            -0.3, 0.12, 0.004, -0.003, -0.02, 0.2, -0.05, 0.01, 0.006, -0.002, -0.004, 0.001,
+        ])
+        .unwrap();
+        let h = 1e-6;
+        for (x, y) in [(0.41, -0.27), (-0.2, 0.33), (0.0, 0.1)] {
+            let j = d.jacobian(x, y);
+            let (xp, yp) = d.distort(x + h, y);
+            let (xm, ym) = d.distort(x - h, y);
+            assert_relative_eq!(j[0][0], (xp - xm) / (2.0 * h), epsilon = 1e-8);
+            assert_relative_eq!(j[1][0], (yp - ym) / (2.0 * h), epsilon = 1e-8);
+            let (xp, yp) = d.distort(x, y + h);
+            let (xm, ym) = d.distort(x, y - h);
+            assert_relative_eq!(j[0][1], (xp - xm) / (2.0 * h), epsilon = 1e-8);
+            assert_relative_eq!(j[1][1], (yp - ym) / (2.0 * h), epsilon = 1e-8);
+        }
+    }
+
+    #[test]
+    fn rational_fold_is_at_the_slope_zero_or_the_pole() {
+        let rational = |k4: f64, k5: f64, k6: f64| {
+            BrownConrady::from_coefficients(&[0.0, 0.0, 0.0, 0.0, 0.0, k4, k5, k6]).unwrap()
+        };
+        // k4 = −1: r R = r / (1 − r²) rises without a fold up to its pole at r² = 1 (hand-computed).
+        assert!((rational(-1.0, 0.0, 0.0).fold_radius() - 1.0).abs() < 1e-15);
+        // k4 = 0.5: r / (1 + 0.5 r²) has the slope (1 − 0.5 r²)/(1 + 0.5 r²)², zero at r² = 2 (hand-computed).
+        assert!((rational(0.5, 0.0, 0.0).fold_radius() - 2f64.sqrt()).abs() < 1e-15);
+        // k6 = 0.01: the denominator stays positive and r R = r / (1 + 0.01 r⁶) peaks where 1 − 0.05 r⁶ = 0.
+        let far = rational(0.0, 0.0, 0.01).fold_radius();
+        assert!((far.powi(6) - 20.0).abs() < 1e-12, "{far}");
+        // k1 = 0.1 over k4 = 0.1: R = 1, no fold.
+        let cancelled = BrownConrady::from_coefficients(&[0.1, 0.0, 0.0, 0.0, 0.0, 0.1, 0.0, 0.0]);
+        assert_eq!(cancelled.unwrap().fold_radius(), f64::INFINITY);
+        // A pixel whose preimage lies past the pole is refused, not undistorted onto the other branch.
+        assert!(rational(-1.0, 0.0, 0.0).undistort(-3.0, 0.0).is_err());
+    }
+
+    /// A rational thin-prism lens with coefficients of real calibrations' sizes.
+    fn thin_prism_lens() -> impl Strategy<Value = BrownConrady> {
+        (
+            prop::array::uniform8(-0.1..0.1f64),
+            prop::array::uniform4(-0.005..0.005f64),
+        )
+            .prop_map(|(radial, prism)| {
+                let [k1, k2, k3, k4, k5, k6, p1, p2] = radial;
+                let [s1, s2, s3, s4] = prism;
+                BrownConrady::from_coefficients(&[
+                    k1,
+                    k2,
+                    p1 / 10.0,
+                    p2 / 10.0,
+                    k3,
+                    k4,
+                    k5,
+                    k6,
+                    s1,
+                    s2,
+                    s3,
+                    s4,
+                ])
+                .unwrap()
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// Undistortion inverts the rational thin-prism model over a 640 × 480 image at f = 600 px.
+        #[test]
+        fn undistort_inverts_thin_prism_distort(d in thin_prism_lens(), x in -0.54..0.54f64, y in -0.4..0.4f64) {
+            let (xd, yd) = d.distort(x, y);
+            let (xu, yu) = d.undistort(xd, yd).unwrap();
+            prop_assert!((xu - x).abs() < 1e-11 && (yu - y).abs() < 1e-11, "{xu} {yu} vs {x} {y}");
+        }
+
+        /// Over any rational coefficients, the radial slope's numerator `N M + 2 s (N′ M − N M′)` and the denominator
+        /// `M`, evaluated term by term, stay positive on a grid inside the fold, and one of them reaches 0 at it.
+        #[test]
+        fn rational_fold_radius_is_the_first_zero(
+            k1 in coefficient(), k2 in coefficient(), k3 in coefficient(),
+            k4 in coefficient(), k5 in coefficient(), k6 in coefficient(),
+        ) {
+            let d = BrownConrady::from_coefficients(&[k1, k2, 0.0, 0.0, k3, k4, k5, k6]).unwrap();
+            let n = |s: f64| 1.0 + k1 * s + k2 * s * s + k3 * s * s * s;
+            let m = |s: f64| 1.0 + k4 * s + k5 * s * s + k6 * s * s * s;
+            let n_ = |s: f64| k1 + 2.0 * k2 * s + 3.0 * k3 * s * s;
+            let m_ = |s: f64| k4 + 2.0 * k5 * s + 3.0 * k6 * s * s;
+            let slope = |s: f64| n(s) * m(s) + 2.0 * s * (n_(s) * m(s) - n(s) * m_(s));
+            // Checked up to s = 1e6 (r = 1000, far past any image), where these products stay finite.
+            let r_f = d.fold_radius();
+            let reach = (r_f * r_f).min(1e6);
+            for i in 0..2000 {
+                let s = reach * f64::from(i) / 2000.0;
+                prop_assert!(slope(s) > 0.0 && m(s) > 0.0, "slope {}, M {} at s = {s} below {reach}", slope(s), m(s));
+            }
+            if reach < 1e6 {
+                let s = reach;
+                let scale = |c: [f64; 3]| 1.0 + (c[0] * s).abs() + (c[1] * s * s).abs() + (c[2] * s * s * s).abs();
+                let tolerance = 1e-10 * scale([k1, k2, k3]) * scale([k4, k5, k6]);
+                prop_assert!(slope(s).abs() <= tolerance || m(s).abs() <= tolerance,
+                    "slope {}, M {} at s = {s}", slope(s), m(s));
+            }
         }
     }
 }

@@ -178,13 +178,28 @@ pub(super) fn check_calibration(text: &str) -> Verdict {
             if let Err(what) = finite("undistorted pixel", &[x, y]) {
                 return Verdict::NonFinite(what);
             }
-            // Inside the lens's fold: the radial map's slope 1 + 3 k1 s + 5 k2 s² + 7 k3 s³ stays positive from the
-            // centre to the preimage (a preimage past the fold distorts back to the pixel too, but is not the one).
-            let [k1, k2, _, _, k3] = camera.distortion.coefficients();
+            // Inside the lens's fold: the radial map's slope numerator N M + 2 s (N′ M − N M′) and its denominator M
+            // stay positive from the centre to the preimage (a preimage past the fold distorts back to the pixel too,
+            // but is not the one).
+            let mut c = [0.0; 12];
+            c[..camera.distortion.coefficients().len()]
+                .copy_from_slice(camera.distortion.coefficients());
+            let [k1, k2, _, _, k3, k4, k5, k6, ..] = c;
+            let inside = |s: f64| {
+                let (n, m) = (
+                    1.0 + s * (k1 + s * (k2 + s * k3)),
+                    1.0 + s * (k4 + s * (k5 + s * k6)),
+                );
+                let (n_, m_) = (
+                    k1 + s * (2.0 * k2 + s * 3.0 * k3),
+                    k4 + s * (2.0 * k5 + s * 3.0 * k6),
+                );
+                m > 0.0 && n * m + 2.0 * s * (n_ * m - n * m_) > 0.0
+            };
             let reach = x * x + y * y;
             let folded = (0..=64)
                 .map(|i| reach * f64::from(i) / 64.0)
-                .find(|&s| 1.0 + 3.0 * k1 * s + 5.0 * k2 * s * s + 7.0 * k3 * s * s * s <= 0.0);
+                .find(|&s| !inside(s));
             if let Some(s) = folded {
                 return Verdict::Wrong(format!(
                     "pixel ({u}, {v}) undistorted to ({x}, {y}), past the fold at r² ≤ {s}"
