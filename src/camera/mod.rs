@@ -12,7 +12,8 @@ mod calibration;
 mod distortion;
 
 pub use calibration::{
-    CalibrationError, CalibrationFormat, MAX_CALIBRATION_BYTES, MAX_CALIBRATION_DEPTH,
+    CalibrationError, CalibrationFormat, CalibrationOptions, MAX_CALIBRATION_BYTES,
+    MAX_CALIBRATION_DEPTH,
 };
 pub use distortion::{BrownConrady, UNDISTORTION_MAX_ITERATIONS, UNDISTORTION_TOLERANCE};
 

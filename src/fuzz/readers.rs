@@ -9,7 +9,7 @@ use super::mutate::{self, Syntax};
 use super::{finite, Case, Verdict};
 use crate::avoidance::mesh::{scaled_vertices, MeshFormat};
 use crate::avoidance::{collision::signed_distance, Collider, Geometry};
-use crate::camera::CalibratedCamera;
+use crate::camera::{CalibratedCamera, CalibrationError, CalibrationOptions};
 use nalgebra::{Isometry3, Vector3};
 use rand::rngs::StdRng;
 use rand::RngExt;
@@ -36,12 +36,18 @@ pub const MESH_SEEDS: [(&str, &[u8]); 4] = [
     ),
 ];
 
-/// The calibration fixtures: ROS `camera_info`, and OpenCV files with five, four and eight coefficients.
-pub const CALIBRATION_SEEDS: [&str; 4] = [
+/// The calibration fixtures: ROS `camera_info`; OpenCV files with five, four and eight coefficients; the shapes of
+/// OpenCV's samples and tutorials (ArUco's without an image size, the tutorial's `Camera_Matrix`, `calibration.cpp`'s
+/// with extrinsics and image points, twelve coefficients).
+pub const CALIBRATION_SEEDS: [&str; 8] = [
     include_str!("../../tests/data/ros_camera_info.yaml"),
     include_str!("../../tests/data/opencv_calibration.yaml"),
     include_str!("../../tests/data/opencv_four_coefficients.yaml"),
     include_str!("../../tests/data/opencv_rational.yaml"),
+    include_str!("../../tests/data/opencv_aruco_no_size.yml"),
+    include_str!("../../tests/data/opencv_tutorial_out_camera_data.yml"),
+    include_str!("../../tests/data/opencv_calibration_cpp.yml"),
+    include_str!("../../tests/data/opencv_thin_prism.yml"),
 ];
 
 /// Single-precision values that break naive mesh code, as little-endian bytes are written: NaN, infinities, the
@@ -162,7 +168,15 @@ pub(super) fn check_mesh(extension: &str, bytes: &[u8]) -> Verdict {
 /// pixel accepted must be finite, lie inside the lens's fold and distort back to itself within the undistortion
 /// tolerance.
 pub(super) fn check_calibration(text: &str) -> Verdict {
+    // A file without an image size loads with one given, as a caller would.
     let camera = match CalibratedCamera::from_yaml_str(text) {
+        Err(CalibrationError::MissingImageSize) => CalibratedCamera::from_yaml_str_with(
+            text,
+            CalibrationOptions::default().with_image_size(640, 480),
+        ),
+        loaded => loaded,
+    };
+    let camera = match camera {
         Ok(camera) => camera,
         Err(error) => return Verdict::Rejected(error.to_string()),
     };

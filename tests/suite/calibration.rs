@@ -93,7 +93,7 @@ fn missing_fields_are_named() {
     assert_eq!(
         ros_error("image_width: 640\n", ""),
         CalibrationError::MissingField {
-            field: "image_width".into()
+            field: "image_width or image_Width".into()
         }
     );
     assert_eq!(
@@ -106,7 +106,7 @@ fn missing_fields_are_named() {
     assert_eq!(
         CalibratedCamera::from_yaml_str(without_distortion).unwrap_err(),
         CalibrationError::MissingField {
-            field: "distortion_coefficients".into()
+            field: "distortion_coefficients or Distortion_Coefficients".into()
         }
     );
 }
@@ -196,9 +196,9 @@ fn unsupported_distortion_is_named() {
         CalibrationError::Camera(CameraError::DistortionCoefficientCount { count: 3 })
     );
     assert_eq!(
-        ros_error("plumb_bob", "rational_polynomial"),
+        ros_error("plumb_bob", "equidistant"),
         CalibrationError::UnsupportedDistortionModel {
-            model: "rational_polynomial".into()
+            model: "equidistant".into()
         }
     );
 }
