@@ -23,6 +23,12 @@ fn text(name: &str) -> String {
     std::fs::read_to_string(data(name)).unwrap()
 }
 
+/// `text` with the first `from` replaced by `to`, which must be there.
+fn edited(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "fixture text not found: {from}");
+    text.replacen(from, to, 1)
+}
+
 /// What a file should load as: intrinsics `(fx, fy, cx, cy, width, height)` (px), coefficients, and the pixels
 /// OpenCV projects the two points of the module docs to.
 struct Expected<'a> {
@@ -182,10 +188,13 @@ fn thin_prism_model_loads_and_a_tilt_is_refused() {
         &thin_prism_expected(),
     );
     // The tilted model's 14 coefficients with zero tilt: the same lens.
-    let last = "0.000234 ]";
+    let last = "2.3400000000000000e-04 ]";
     let with_tilt = |tau: &str| {
-        file.replacen("cols: 12", "cols: 14", 1)
-            .replacen(last, &format!("0.000234, {tau} ]"), 1)
+        edited(
+            &edited(&file, "cols: 12", "cols: 14"),
+            last,
+            &format!("2.3400000000000000e-04, {tau} ]"),
+        )
     };
     assert_loads_as(
         &CalibratedCamera::from_yaml_str(&with_tilt("0., 0.")).unwrap(),
@@ -200,7 +209,7 @@ fn thin_prism_model_loads_and_a_tilt_is_refused() {
     );
     // The tutorial's fisheye flag: its coefficients are another model's.
     assert_eq!(
-        CalibratedCamera::from_yaml_str(&file.replacen("fisheye_model: 0", "fisheye_model: 1", 1))
+        CalibratedCamera::from_yaml_str(&edited(&file, "fisheye_model: 0", "fisheye_model: 1"))
             .unwrap_err(),
         CalibrationError::UnsupportedDistortionModel {
             model: "fisheye (fisheye_model set)".into()
@@ -211,9 +220,11 @@ fn thin_prism_model_loads_and_a_tilt_is_refused() {
 #[test]
 fn unsupported_coefficient_counts_are_named() {
     let file = text("opencv_thin_prism.yml");
-    let first_eleven =
-        file.replacen("cols: 12", "cols: 11", 1)
-            .replacen(",\n       -0.000987", "", 1);
+    let first_eleven = edited(
+        &edited(&file, "cols: 12", "cols: 11"),
+        ",\n       -9.8700000000000003e-04",
+        "",
+    );
     assert_eq!(
         CalibratedCamera::from_yaml_str(&first_eleven).unwrap_err(),
         CalibrationError::Camera(CameraError::DistortionCoefficientCount { count: 11 })
@@ -224,10 +235,14 @@ fn unsupported_coefficient_counts_are_named() {
 fn directive_spellings_and_duplicated_fields() {
     let file = text("opencv_tutorial_out_camera_data.yml");
     // `%YAML 1.0` (with a space) as well as OpenCV's `%YAML:1.0`.
-    let spaced = file.replacen("%YAML:1.0", "%YAML 1.0", 1);
+    let spaced = edited(&file, "%YAML:1.0", "%YAML 1.0");
     assert!(CalibratedCamera::from_yaml_str(&spaced).is_ok());
     // A field under two of its keys.
-    let twice = file.replacen("image_Width: 800", "image_Width: 800\nimage_width: 800", 1);
+    let twice = edited(
+        &file,
+        "image_Width: 800",
+        "image_Width: 800\nimage_width: 800",
+    );
     assert_eq!(
         CalibratedCamera::from_yaml_str(&twice).unwrap_err(),
         CalibrationError::DuplicateField {
@@ -236,7 +251,7 @@ fn directive_spellings_and_duplicated_fields() {
         }
     );
     // One of the two sizes: the other is named with its accepted keys.
-    let no_height = file.replacen("image_Height: 600\n", "", 1);
+    let no_height = edited(&file, "image_Height: 600\n", "");
     assert_eq!(
         CalibratedCamera::from_yaml_str(&no_height).unwrap_err(),
         CalibrationError::MissingField {
@@ -244,7 +259,7 @@ fn directive_spellings_and_duplicated_fields() {
         }
     );
     // Errors inside a matrix name its key as written.
-    let short = file.replacen("0., 0., 1. ]", "0., 0. ]", 1);
+    let short = edited(&file, "0., 0., 1. ]", "0., 0. ]");
     assert_eq!(
         CalibratedCamera::from_yaml_str(&short).unwrap_err(),
         CalibrationError::DataLength {
@@ -278,10 +293,9 @@ fn given_image_sizes_are_checked() {
 #[test]
 fn ros_rational_polynomial_loads() {
     let ros = text("ros_camera_info.yaml");
-    let rational = ros
-        .replacen("plumb_bob", "rational_polynomial", 1)
-        .replacen("cols: 5", "cols: 8", 1)
-        .replacen("-0.0104]", "-0.0104, 0.0021, -0.0003, 0.00005]", 1);
+    let rational = edited(&ros, "plumb_bob", "rational_polynomial");
+    let rational = edited(&rational, "cols: 5", "cols: 8");
+    let rational = edited(&rational, "-0.0104]", "-0.0104, 0.0021, -0.0003, 0.00005]");
     let camera = CalibratedCamera::from_yaml_str(&rational).unwrap();
     assert_eq!(
         camera.distortion.coefficients(),
