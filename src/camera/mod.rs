@@ -4,9 +4,11 @@
 //! Frames: the camera frame `c` has z forward along the optical axis, x right, y down. Projection gives normalised
 //! image coordinates `x = X/Z`, `y = Y/Z` (metric, not pixels) and the depth `Z` (m) of each point.
 //!
-//! Parts: [`CameraIntrinsics`] (pinhole, pixels), [`BrownConrady`] (lens distortion on normalised coordinates,
-//! `distortion`), [`CalibratedCamera`] (both: measured pixel ↔ undistorted normalised point) and its loading from ROS
-//! `camera_info` and OpenCV YAML calibration files (`calibration`).
+//! Parts: [`CameraIntrinsics`] (pinhole, pixels), [`BrownConrady`] (lens distortion on normalised coordinates:
+//! Brown–Conrady with OpenCV's rational and thin-prism terms, `distortion`), [`CalibratedCamera`] (both: measured
+//! pixel ↔ undistorted normalised point) and its loading from ROS `camera_info` and OpenCV YAML calibration files under
+//! the keys OpenCV's samples and tutorials write ([`CalibratedCamera::from_yaml_file`]; [`CalibrationOptions`] for the
+//! image size a file leaves out; `calibration`).
 
 mod calibration;
 mod distortion;
