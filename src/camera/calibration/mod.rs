@@ -13,8 +13,8 @@
 //! | distortion model (ROS) | `distortion_model` | optional; `plumb_bob` or `rational_polynomial` (the coefficients' count says which, as ROS's `image_geometry` reads them) |
 //! | fisheye flag (OpenCV tutorial) | `fisheye_model` | optional; must be 0 (the fisheye model's coefficients are another model's) |
 //!
-//! `image_width` / `image_Width` is written by ROS, OpenCV's `samples/cpp/calibration.cpp` and its calibration
-//! tutorial (`camera_calibration.cpp`), `image_Width` and `Camera_Matrix` by the tutorial's older `out_camera_data.yml`;
+//! The lower-case keys are written by ROS, OpenCV's `samples/cpp/calibration.cpp` and the calibration tutorial's
+//! current `camera_calibration.cpp`; `image_Width`, `Camera_Matrix`, ... by the tutorial's older `out_camera_data.yml`;
 //! the ArUco samples' camera parameters have no image size. Other fields (`camera_name`, `rectification_matrix`,
 //! `projection_matrix`, `calibration_time`, `nr_of_frames`, `board_width`, `square_size`, `flags`,
 //! `avg_reprojection_error`, `extrinsic_parameters`, `image_points`, a matrix's `dt`, ...) are ignored.
