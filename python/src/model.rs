@@ -267,10 +267,11 @@ impl Camera {
         (i.fx(), i.fy(), i.cx(), i.cy(), i.width(), i.height())
     }
 
-    /// `(k1, k2, p1, p2, k3)`.
+    /// The distortion coefficients in OpenCV's order: `(k1, k2, p1, p2, k3)`, with `k4, k5, k6` for a rational lens
+    /// and `s1 … s4` for a thin-prism lens.
     #[getter]
-    fn distortion(&self) -> [f64; 5] {
-        self.camera.distortion.coefficients()
+    fn distortion(&self) -> Vec<f64> {
+        self.camera.distortion.coefficients().to_vec()
     }
 
     /// The pixel `(u, v)` at which the point of normalised coordinates `(x, y)` is imaged (through the lens).

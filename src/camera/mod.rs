@@ -4,15 +4,18 @@
 //! Frames: the camera frame `c` has z forward along the optical axis, x right, y down. Projection gives normalised
 //! image coordinates `x = X/Z`, `y = Y/Z` (metric, not pixels) and the depth `Z` (m) of each point.
 //!
-//! Parts: [`CameraIntrinsics`] (pinhole, pixels), [`BrownConrady`] (lens distortion on normalised coordinates,
-//! `distortion`), [`CalibratedCamera`] (both: measured pixel ↔ undistorted normalised point) and its loading from ROS
-//! `camera_info` and OpenCV YAML calibration files (`calibration`).
+//! Parts: [`CameraIntrinsics`] (pinhole, pixels), [`BrownConrady`] (lens distortion on normalised coordinates:
+//! Brown–Conrady with OpenCV's rational and thin-prism terms, `distortion`), [`CalibratedCamera`] (both: measured
+//! pixel ↔ undistorted normalised point) and its loading from ROS `camera_info` and OpenCV YAML calibration files under
+//! the keys OpenCV's samples and tutorials write ([`CalibratedCamera::from_yaml_file`]; [`CalibrationOptions`] for the
+//! image size a file leaves out; `calibration`).
 
 mod calibration;
 mod distortion;
 
 pub use calibration::{
-    CalibrationError, CalibrationFormat, MAX_CALIBRATION_BYTES, MAX_CALIBRATION_DEPTH,
+    CalibrationError, CalibrationFormat, CalibrationOptions, MAX_CALIBRATION_BYTES,
+    MAX_CALIBRATION_DEPTH,
 };
 pub use distortion::{BrownConrady, UNDISTORTION_MAX_ITERATIONS, UNDISTORTION_TOLERANCE};
 
@@ -74,21 +77,23 @@ pub enum CameraError {
     /// A distortion coefficient is outside [`crate::bounds::DISTORTION_COEFFICIENT`] (±1e4, finite).
     #[error("invalid distortion coefficient {name} = {value}: expected finite, within ±1e4")]
     InvalidDistortion {
-        /// The coefficient (`"k1"`, `"k2"`, `"p1"`, `"p2"`, `"k3"`).
+        /// The coefficient (`"k1"`, `"k2"`, `"p1"`, `"p2"`, `"k3"`, `"k4"` … `"s4"`, `"tau_x"`, `"tau_y"`).
         name: &'static str,
         /// Its value.
         value: f64,
     },
-    /// A rational or thin-prism distortion model (8, 12 or 14 coefficients), which is not supported: only the
-    /// Brown–Conrady "plumb bob" model with 4 or 5 coefficients is.
-    #[error("{count} distortion coefficients: OpenCV's rational/thin-prism models are not supported (use 4 or 5)")]
-    RationalDistortion {
-        /// Number of coefficients given.
-        count: usize,
+    /// OpenCV's tilted distortion model (14 coefficients) with a non-zero tilt `τx` or `τy`, which is not supported
+    /// (with zero tilt it is the thin-prism model, which is).
+    #[error("distortion tilt tau_x = {tau_x}, tau_y = {tau_y}: OpenCV's tilted sensor model is not supported (only with zero tilt)")]
+    TiltedDistortion {
+        /// `τx` (rad).
+        tau_x: f64,
+        /// `τy` (rad).
+        tau_y: f64,
     },
-    /// A distortion coefficient list whose length is neither 4 nor 5 (nor a rational model's).
+    /// A distortion coefficient list whose length is none of OpenCV's: 4, 5, 8, 12 or 14.
     #[error(
-        "{count} distortion coefficients: expected 4 (k1, k2, p1, p2) or 5 (k1, k2, p1, p2, k3)"
+        "{count} distortion coefficients: expected 4 or 5 (k1, k2, p1, p2[, k3]), 8 (rational: + k4, k5, k6), 12 (thin prism: + s1 … s4) or 14 (+ tau_x, tau_y, zero)"
     )]
     DistortionCoefficientCount {
         /// Number of coefficients given.
@@ -254,7 +259,8 @@ impl CameraIntrinsics {
     }
 }
 
-/// A calibrated camera: pinhole intrinsics and Brown–Conrady distortion, as a calibration tool delivers them.
+/// A calibrated camera: pinhole intrinsics and lens distortion (Brown–Conrady with OpenCV's rational and thin-prism
+/// terms), as a calibration tool delivers them.
 ///
 /// A point at undistorted normalised coordinates `(x, y)` is measured at the pixel
 /// `(u, v) = (cx + fx x_d, cy + fy y_d)` with `(x_d, y_d) = distort(x, y)` ([`BrownConrady::distort`]); the way back

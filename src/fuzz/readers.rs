@@ -9,7 +9,7 @@ use super::mutate::{self, Syntax};
 use super::{finite, Case, Verdict};
 use crate::avoidance::mesh::{scaled_vertices, MeshFormat};
 use crate::avoidance::{collision::signed_distance, Collider, Geometry};
-use crate::camera::CalibratedCamera;
+use crate::camera::{CalibratedCamera, CalibrationError, CalibrationOptions};
 use nalgebra::{Isometry3, Vector3};
 use rand::rngs::StdRng;
 use rand::RngExt;
@@ -36,12 +36,18 @@ pub const MESH_SEEDS: [(&str, &[u8]); 4] = [
     ),
 ];
 
-/// The calibration fixtures: ROS `camera_info`, and OpenCV files with five, four and eight coefficients.
-pub const CALIBRATION_SEEDS: [&str; 4] = [
+/// The calibration fixtures: ROS `camera_info`; OpenCV files with five, four and eight coefficients; the shapes of
+/// OpenCV's samples and tutorials (ArUco's without an image size, the tutorial's `Camera_Matrix`, `calibration.cpp`'s
+/// with extrinsics and image points, twelve coefficients).
+pub const CALIBRATION_SEEDS: [&str; 8] = [
     include_str!("../../tests/data/ros_camera_info.yaml"),
     include_str!("../../tests/data/opencv_calibration.yaml"),
     include_str!("../../tests/data/opencv_four_coefficients.yaml"),
     include_str!("../../tests/data/opencv_rational.yaml"),
+    include_str!("../../tests/data/opencv_aruco_no_size.yml"),
+    include_str!("../../tests/data/opencv_tutorial_out_camera_data.yml"),
+    include_str!("../../tests/data/opencv_calibration_cpp.yml"),
+    include_str!("../../tests/data/opencv_thin_prism.yml"),
 ];
 
 /// Single-precision values that break naive mesh code, as little-endian bytes are written: NaN, infinities, the
@@ -162,7 +168,15 @@ pub(super) fn check_mesh(extension: &str, bytes: &[u8]) -> Verdict {
 /// pixel accepted must be finite, lie inside the lens's fold and distort back to itself within the undistortion
 /// tolerance.
 pub(super) fn check_calibration(text: &str) -> Verdict {
+    // A file without an image size loads with one given, as a caller would.
     let camera = match CalibratedCamera::from_yaml_str(text) {
+        Err(CalibrationError::MissingImageSize) => CalibratedCamera::from_yaml_str_with(
+            text,
+            CalibrationOptions::default().with_image_size(640, 480),
+        ),
+        loaded => loaded,
+    };
+    let camera = match camera {
         Ok(camera) => camera,
         Err(error) => return Verdict::Rejected(error.to_string()),
     };
@@ -178,13 +192,28 @@ pub(super) fn check_calibration(text: &str) -> Verdict {
             if let Err(what) = finite("undistorted pixel", &[x, y]) {
                 return Verdict::NonFinite(what);
             }
-            // Inside the lens's fold: the radial map's slope 1 + 3 k1 s + 5 k2 s² + 7 k3 s³ stays positive from the
-            // centre to the preimage (a preimage past the fold distorts back to the pixel too, but is not the one).
-            let [k1, k2, _, _, k3] = camera.distortion.coefficients();
+            // Inside the lens's fold: the radial map's slope numerator N M + 2 s (N′ M − N M′) and its denominator M
+            // stay positive from the centre to the preimage (a preimage past the fold distorts back to the pixel too,
+            // but is not the one).
+            let mut c = [0.0; 12];
+            c[..camera.distortion.coefficients().len()]
+                .copy_from_slice(camera.distortion.coefficients());
+            let [k1, k2, _, _, k3, k4, k5, k6, ..] = c;
+            let inside = |s: f64| {
+                let (n, m) = (
+                    1.0 + s * (k1 + s * (k2 + s * k3)),
+                    1.0 + s * (k4 + s * (k5 + s * k6)),
+                );
+                let (n_, m_) = (
+                    k1 + s * (2.0 * k2 + s * 3.0 * k3),
+                    k4 + s * (2.0 * k5 + s * 3.0 * k6),
+                );
+                m > 0.0 && n * m + 2.0 * s * (n_ * m - n * m_) > 0.0
+            };
             let reach = x * x + y * y;
             let folded = (0..=64)
                 .map(|i| reach * f64::from(i) / 64.0)
-                .find(|&s| 1.0 + 3.0 * k1 * s + 5.0 * k2 * s * s + 7.0 * k3 * s * s * s <= 0.0);
+                .find(|&s| !inside(s));
             if let Some(s) = folded {
                 return Verdict::Wrong(format!(
                     "pixel ({u}, {v}) undistorted to ({x}, {y}), past the fold at r² ≤ {s}"

@@ -222,7 +222,16 @@ impl Settings {
         if experiment.lens.is_identity() {
             return Ok(measurement);
         }
-        let lens = experiment.lens.coefficients();
+        let Ok(lens) = <[f64; 5]>::try_from(experiment.lens.coefficients()) else {
+            return Err(invalid(
+                "camera",
+                format!(
+                    "the simulated measurement takes a plumb-bob lens (k1, k2, p1, p2, k3); the experiment's camera has the {} coefficients {:?}",
+                    experiment.lens.coefficients().len(),
+                    experiment.lens.coefficients()
+                ),
+            ));
+        };
         if measurement.distortion_coefficients == [0.0; 5] {
             measurement.distortion_coefficients = lens;
         } else if measurement.distortion_coefficients != lens {

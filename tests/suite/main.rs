@@ -17,6 +17,7 @@ mod servo_loop;
 
 mod allocation;
 mod calibration;
+mod calibration_opencv;
 mod camera_target;
 mod citations;
 mod controller_escape;

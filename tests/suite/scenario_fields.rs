@@ -359,7 +359,7 @@ fn conflicts_between_the_world_and_the_settings_are_refused() {
 
     // The lens: from the camera, or the same in the settings; another one is refused.
     let mut same = settings;
-    same.measurement.distortion_coefficients = lens.coefficients();
+    same.measurement.distortion_coefficients = [-0.1, 0.02, 0.0, 0.0, 0.0];
     let from_camera = fingerprint(&distorted.run(&settings, RunKind::FullMethod).unwrap());
     assert_eq!(
         from_camera,
@@ -378,6 +378,26 @@ fn conflicts_between_the_world_and_the_settings_are_refused() {
             .contains("measurement.distortion_coefficients"),
         "{error}"
     );
+
+    // A rational lens: the simulated measurement takes the five plumb-bob coefficients, so the run is refused.
+    let rational = CalibratedCamera {
+        intrinsics,
+        distortion: BrownConrady::from_coefficients(&[-0.1, 0.02, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0])
+            .unwrap(),
+    };
+    let error = Experiment::builder(
+        robot.chain.clone(),
+        robot.mount,
+        rational,
+        *world.scene.target(),
+    )
+    .goal(world.desired_joints, world.desired_camera_from_target)
+    .start(world.start)
+    .build()
+    .unwrap()
+    .run(&settings, RunKind::FullMethod)
+    .unwrap_err();
+    assert!(error.to_string().contains("plumb-bob lens"), "{error}");
 
     // A visibility cost in the scene and in the settings.
     let mut seen = world.clone();
