@@ -175,8 +175,8 @@ pub struct ControllerParameters {
     /// `ε_add`), has grown to `r_push` times its smallest value since the last change (tested from one transition
     /// after that change). The current stack is then carrying the robot towards a configuration where the next task's
     /// projected Jacobian is singular: the task is pushed while the robot approaches it, not once it has passed it.
-    /// Full method only (robust rule, removals allowed); default 4; `+∞` switches it off. Window and measurements:
-    /// theory D28.
+    /// Full method only (robust rule, removals allowed); default 16 (4 until the zoo's `feasible` family showed 4
+    /// pushing too early on `kinova`); `+∞` switches it off. Window and measurements: theory D28.
     pub early_push_ratio: f64,
     /// Whether the controller **holds** rather than let the law cross a hard limit (D13; default `false` since the
     /// lock of D26, which lets the runs the hold would stop slide along the limit instead): after the
@@ -248,7 +248,7 @@ impl Default for ControllerParameters {
             escape_achieved_error: 1e-3,
             escape_error: 0.005,
             escape_growth_rate: 0.0,
-            early_push_ratio: 4.0,
+            early_push_ratio: 16.0,
             hold_before_limit: false,
             braking_rate: 5.0,
             lock_band: 1e-5,
