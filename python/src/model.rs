@@ -7,7 +7,9 @@ use crate::{CameraError, Error, RobotError};
 use numpy::PyArray2;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use servostack::camera::{BrownConrady, CalibratedCamera, CameraIntrinsics, EyeInHand};
+use servostack::camera::{
+    BrownConrady, CalibratedCamera, CalibrationOptions, CameraIntrinsics, EyeInHand,
+};
 use servostack::robot::{builtin, RobotError as RustRobotError, SerialChain};
 use servostack::scenario::{with_joint_count, ForJointCount, PoseSpec};
 use std::any::Any;
@@ -253,10 +255,17 @@ impl Camera {
         })
     }
 
-    /// A calibration file: ROS `camera_info` or OpenCV YAML.
+    /// A calibration file: ROS `camera_info` or OpenCV YAML; `image_size = (width, height)` (px) for a file that does
+    /// not give it (OpenCV's ArUco samples), and if given for a file that does, it must be the same.
     #[staticmethod]
-    fn from_file(path: PathBuf) -> PyResult<Self> {
-        let camera = CalibratedCamera::from_yaml_file(path).map_err(raise::<CameraError>)?;
+    #[pyo3(signature = (path, image_size=None))]
+    fn from_file(path: PathBuf, image_size: Option<(u32, u32)>) -> PyResult<Self> {
+        let options = match image_size {
+            Some((width, height)) => CalibrationOptions::default().with_image_size(width, height),
+            None => CalibrationOptions::default(),
+        };
+        let camera =
+            CalibratedCamera::from_yaml_file_with(path, options).map_err(raise::<CameraError>)?;
         Ok(Self { camera })
     }
 

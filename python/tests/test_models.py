@@ -31,6 +31,18 @@ def test_pose_is_the_scenario_files_roll_pitch_yaw():
     np.testing.assert_allclose(m[3], [0, 0, 0, 1])
 
 
+def test_a_calibration_file_without_image_size_needs_one(repo):
+    path = repo / "tests/data/opencv_aruco_no_size.yml"
+    with pytest.raises(ss.CameraError, match="image size"):
+        ss.Camera.from_file(path)
+    camera = ss.Camera.from_file(path, image_size=(640, 480))
+    # The numbers written in the file, and the size given.
+    assert camera.intrinsics == pytest.approx((628.71534, 626.93217, 324.156, 238.987, 640.0, 480.0))
+    assert camera.distortion == pytest.approx([-0.41287, 0.23109, -0.00076, 0.00118, -0.08543])
+    with pytest.raises(ss.CameraError):
+        ss.Camera.from_file(path, image_size=(0, 480))
+
+
 def test_camera_from_a_calibration_file_round_trips_pixels(repo):
     camera = ss.Camera.from_file(repo / "tests/data/ros_camera_info.yaml")
     assert camera.intrinsics == (612.5, 611.75, 318.25, 241.5, 640.0, 480.0)
