@@ -37,7 +37,7 @@ const REPEATS: usize = 5;
 const EPISODE: usize = 1000;
 
 fn scenario() -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/paper_afma6.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenarios/paper_afma6.toml");
     Scenario::from_file(&path).expect("paper scenario")
 }
 
