@@ -227,7 +227,8 @@ pub struct Camera {
 
 #[pymethods]
 impl Camera {
-    /// Intrinsics `fx, fy, cx, cy` (px), the image size (px) and, optionally, the distortion `(k1, k2, p1, p2, k3)`.
+    /// Intrinsics `fx, fy, cx, cy` (px), the image size (px) and, optionally, the distortion coefficients in OpenCV's
+    /// order: 4 or 5 (`k1, k2, p1, p2[, k3]`), 8 (rational), 12 (thin prism) or 14 (zero tilt).
     #[new]
     #[pyo3(signature = (fx, fy, cx, cy, width, height, distortion = None))]
     fn new(
@@ -237,13 +238,13 @@ impl Camera {
         cy: f64,
         width: f64,
         height: f64,
-        distortion: Option<[f64; 5]>,
+        distortion: Option<Vec<f64>>,
     ) -> PyResult<Self> {
         let intrinsics =
             CameraIntrinsics::new(fx, fy, cx, cy, width, height).map_err(raise::<CameraError>)?;
         let distortion = match distortion {
-            Some([k1, k2, p1, p2, k3]) => {
-                BrownConrady::new(k1, k2, p1, p2, k3).map_err(raise::<CameraError>)?
+            Some(coefficients) => {
+                BrownConrady::from_coefficients(&coefficients).map_err(raise::<CameraError>)?
             }
             None => BrownConrady::default(),
         };

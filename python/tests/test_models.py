@@ -43,6 +43,16 @@ def test_a_calibration_file_without_image_size_needs_one(repo):
         ss.Camera.from_file(path, image_size=(0, 480))
 
 
+def test_a_camera_takes_opencv_coefficient_lists():
+    rational = [-0.3, 0.12, 0.004, -0.003, -0.02, 0.2, -0.05, 0.01]
+    camera = ss.Camera(600.0, 600.0, 320.0, 240.0, 640.0, 480.0, rational)
+    assert camera.distortion == pytest.approx(rational)
+    u, v = camera.pixel_of(0.1, -0.05)
+    assert camera.normalized_of(u, v) == pytest.approx((0.1, -0.05), abs=1e-9)
+    with pytest.raises(ss.CameraError, match="distortion coefficients"):
+        ss.Camera(600.0, 600.0, 320.0, 240.0, 640.0, 480.0, [0.1, 0.2, 0.3])
+
+
 def test_camera_from_a_calibration_file_round_trips_pixels(repo):
     camera = ss.Camera.from_file(repo / "tests/data/ros_camera_info.yaml")
     assert camera.intrinsics == (612.5, 611.75, 318.25, 241.5, 640.0, 480.0)
