@@ -79,6 +79,9 @@
 //! assert!((s_star[2] - 0.5).abs() < 1e-12); // a_n = Z* at the desired pose
 //! # Ok::<(), servostack::feature::FeatureError>(())
 //! ```
+//!
+//! [`ImagePoint`]: crate::camera::ImagePoint
+//! [`TargetPlane`]: crate::target::TargetPlane
 
 /// The three `write_*` methods of [`Feature`] for a feature of `K` rows whose values and interaction rows come out of
 /// one evaluation, `$evaluate(&self, &Observation, InteractionSource) -> Result<[(f64, InteractionRow); K],
@@ -122,26 +125,30 @@ macro_rules! writes_from_one_evaluation {
 mod angle;
 mod area;
 mod centroid;
+mod error;
 mod invariants;
 mod moments;
+mod observation;
 mod point;
 mod set;
 mod sides;
+#[cfg(test)]
+mod tests;
 #[cfg(test)]
 pub(crate) mod testutil;
 
 pub use angle::{DiagonalAngle, MomentOrientation};
 pub use area::{AreaNormalization, AreaNormalized, CentredMoment};
 pub use centroid::{Centroid, NormalizedCentroid};
+pub use error::FeatureError;
 pub use invariants::{PaperInvariants, VispInvariants};
 pub use moments::Moments;
-pub use point::{AllPoints, Point};
+pub use observation::Observation;
+pub use point::{point_interaction, AllPoints, Point};
 pub use set::{BoxedFeature, FeatureSet, VispMoments};
 pub use sides::SideRatios;
 
-use crate::camera::ImagePoint;
 use crate::math::wrap_angle;
-use crate::target::TargetPlane;
 use nalgebra::{Dyn, MatrixViewMut, RowVector6, U1, U6};
 
 /// One row of an interaction matrix: the partial derivatives of a scalar feature with respect to the camera twist
@@ -156,149 +163,6 @@ pub type InteractionRows<'a> = MatrixViewMut<'a, f64, Dyn, U6, U1, Dyn>;
 /// Relative tolerance below which a size-like quantity is treated as zero: `a = μ20 + μ02` against
 /// `Σ (x_k² + y_k²)`, a diagonal length against the magnitude of its end points, and `I1` against `I3²` (D9).
 pub const RELATIVE_TOLERANCE: f64 = 1e-10;
-
-/// Errors of the feature module. Each variant carries the offending values.
-#[non_exhaustive]
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum FeatureError {
-    /// The feature needs more image points than were observed.
-    #[error("feature `{feature}` needs at least {needed} image points, got {got}")]
-    TooFewPoints {
-        /// Name of the feature.
-        feature: &'static str,
-        /// Minimum number of points.
-        needed: usize,
-        /// Number of points observed.
-        got: usize,
-    },
-    /// The feature is defined for an exact number of points (e.g. [`AllPoints`]) and another number was observed.
-    #[error("feature `{feature}` is defined for exactly {expected} image points, got {got}")]
-    PointCountMismatch {
-        /// Name of the feature.
-        feature: &'static str,
-        /// Number of points the feature was built for.
-        expected: usize,
-        /// Number of points observed.
-        got: usize,
-    },
-    /// An image point has a NaN or infinite coordinate or depth.
-    #[error("image point {index} is not finite: x = {x}, y = {y}, depth = {depth}")]
-    NonFinitePoint {
-        /// Index of the point.
-        index: usize,
-        /// Normalised abscissa.
-        x: f64,
-        /// Normalised ordinate.
-        y: f64,
-        /// Depth (m).
-        depth: f64,
-    },
-    /// The target plane has a NaN or infinite coefficient.
-    #[error("target plane is not finite: A = {a}, B = {b}, C = {c}")]
-    NonFinitePlane {
-        /// Coefficient A (1/m).
-        a: f64,
-        /// Coefficient B (1/m).
-        b: f64,
-        /// Coefficient C (1/m).
-        c: f64,
-    },
-    /// An image point is at or behind the camera: its depth is not strictly positive.
-    #[error("image point {index} is at or behind the camera: depth = {depth} m")]
-    PointBehindCamera {
-        /// Index of the point.
-        index: usize,
-        /// Its depth (m).
-        depth: f64,
-    },
-    /// The target plane puts an image point at or behind the camera (or at infinity): `A x + B y + C ≤ 0`.
-    #[error("the target plane puts image point {index} at or behind the camera: 1/Z = {inverse_depth} 1/m")]
-    PlaneBehindCamera {
-        /// Index of the point.
-        index: usize,
-        /// `A x + B y + C` at that point (1/m).
-        inverse_depth: f64,
-    },
-    /// The two end points of the segment defining an angle coincide in the image (zero length, \[M32\]).
-    #[error("segment from point {from} to point {to} has zero length ({length}) in the image: its angle is undefined")]
-    DegenerateSegment {
-        /// Index of the first end point.
-        from: usize,
-        /// Index of the second end point.
-        to: usize,
-        /// Length of the segment in normalised coordinates.
-        length: f64,
-    },
-    /// `a = μ20 + μ02` vanishes (all points coincide in the image), so `a_n`, `P_x`, `P_y` are undefined (\[M37\]).
-    #[error("second-order size a = μ20 + μ02 = {a} is zero relative to Σ(x² + y²) = {scale}: the points coincide")]
-    DegenerateArea {
-        /// `μ20 + μ02`.
-        a: f64,
-        /// `Σ (x_k² + y_k²)`, the scale of the relative test.
-        scale: f64,
-    },
-    /// `I1 = (μ20 − μ02)² + 4 μ11²` vanishes relative to `I3² = (μ20 + μ02)²`: the second-order moments are
-    /// isotropic (a square seen head-on), so the orientation and the paper's `P_x, P_y` are undefined (D9).
-    #[error("I1 = {i1} is zero relative to I3² (I3 = {i3}): isotropic moments, e.g. a square seen head-on (D9)")]
-    IsotropicMoments {
-        /// `I1`.
-        i1: f64,
-        /// `I3 = μ20 + μ02`.
-        i3: f64,
-    },
-    /// A parameter of a feature is out of its range.
-    #[error("parameter `{name}` = {value} must be {expected}")]
-    InvalidParameter {
-        /// Name of the parameter.
-        name: &'static str,
-        /// Its value.
-        value: f64,
-        /// Its range.
-        expected: &'static str,
-    },
-    /// The two point indices of a segment are equal.
-    #[error("a segment needs two distinct points, got {from} and {to}")]
-    SameEndPoints {
-        /// Index of the first end point.
-        from: usize,
-        /// Index of the second end point.
-        to: usize,
-    },
-    /// A centred moment `μ_ij` of order `i + j > 3` was requested (orders up to 3 are computed).
-    #[error("centred moment μ_{i}{j} has order {} > 3", i + j)]
-    UnsupportedMomentOrder {
-        /// Power of x.
-        i: usize,
-        /// Power of y.
-        j: usize,
-    },
-    /// The caller-provided storage does not have the feature's dimension.
-    #[error("feature `{feature}` has {expected} rows, storage has {got}")]
-    WrongDimension {
-        /// Name of the feature.
-        feature: &'static str,
-        /// The feature's dimension.
-        expected: usize,
-        /// Rows of the storage.
-        got: usize,
-    },
-    /// A feature value given to [`Feature::error`] is NaN or infinite.
-    #[error("feature `{feature}`, row {row}: value {value} is not finite")]
-    NonFiniteValue {
-        /// Name of the feature.
-        feature: &'static str,
-        /// Row.
-        row: usize,
-        /// The value.
-        value: f64,
-    },
-    /// A computed value or interaction entry overflowed to a non-finite number (extreme input).
-    #[error("feature `{feature}` produced a non-finite result")]
-    NonFiniteResult {
-        /// Name of the feature.
-        feature: &'static str,
-    },
-}
 
 /// Where the interaction matrix is evaluated ([D10](crate::theory#d10), [§8](crate::theory#s8)).
 #[derive(
@@ -315,156 +179,6 @@ pub enum InteractionSource {
     /// The exact matrix evaluated at the desired pose: pass the **desired** observation to
     /// [`Feature::interaction`]. The matrix is constant; compute it once.
     Desired,
-}
-
-/// Validated image points with their inverse depths and their moments, computed once and read by every feature
-/// ([theory §7.1](crate::theory#s7-1), [§7.4](crate::theory#s7-4)).
-#[derive(Debug, Clone)]
-pub struct Observation<'a> {
-    points: &'a [ImagePoint],
-    plane: Option<TargetPlane>,
-    /// Computed at the first [`Observation::moments`] call, so that features that read the points only (e.g.
-    /// [`AllPoints`]) do not pay for them; kept even when they overflowed (`moments()` then fails).
-    moments: std::cell::OnceCell<Moments>,
-}
-
-impl<'a> Observation<'a> {
-    /// Validates `points` (normalised coordinates and depths in the camera frame) and the optional target plane
-    /// `1/Z = A x + B y + C` (1/m, camera frame), then computes the [`Moments`] of the point set. Allocates nothing.
-    ///
-    /// The inverse depth of point k is `A x_k + B y_k + C` when `plane` is given, `1/Z_k` otherwise.
-    ///
-    /// # Errors
-    /// [`FeatureError::TooFewPoints`] for an empty slice; [`FeatureError::NonFinitePoint`] /
-    /// [`FeatureError::NonFinitePlane`] for NaN or infinite inputs (every field is checked, even the depths that a
-    /// plane makes unused); [`FeatureError::PointBehindCamera`] when a depth in use is `≤ 0`;
-    /// [`FeatureError::PlaneBehindCamera`] when the plane gives `1/Z ≤ 0` at a point. (Overflowing moments are reported
-    /// by [`Observation::moments`].)
-    pub fn new(
-        points: &'a [ImagePoint],
-        plane: Option<&TargetPlane>,
-    ) -> Result<Self, FeatureError> {
-        if points.is_empty() {
-            return Err(FeatureError::TooFewPoints {
-                feature: "observation",
-                needed: 1,
-                got: 0,
-            });
-        }
-        if let Some(p) = plane {
-            if !(p.a.is_finite() && p.b.is_finite() && p.c.is_finite()) {
-                return Err(FeatureError::NonFinitePlane {
-                    a: p.a,
-                    b: p.b,
-                    c: p.c,
-                });
-            }
-        }
-        for (index, p) in points.iter().enumerate() {
-            if !(p.x.is_finite() && p.y.is_finite() && p.depth.is_finite()) {
-                return Err(FeatureError::NonFinitePoint {
-                    index,
-                    x: p.x,
-                    y: p.y,
-                    depth: p.depth,
-                });
-            }
-            match plane {
-                Some(plane) => {
-                    let inverse_depth = plane.inverse_depth(p.x, p.y);
-                    if !(inverse_depth > 0.0 && inverse_depth.is_finite()) {
-                        return Err(FeatureError::PlaneBehindCamera {
-                            index,
-                            inverse_depth,
-                        });
-                    }
-                }
-                None if p.depth <= 0.0 => {
-                    return Err(FeatureError::PointBehindCamera {
-                        index,
-                        depth: p.depth,
-                    })
-                }
-                None => {}
-            }
-        }
-        Ok(Self {
-            points,
-            plane: plane.copied(),
-            moments: std::cell::OnceCell::new(),
-        })
-    }
-
-    /// The observed points.
-    pub fn points(&self) -> &'a [ImagePoint] {
-        self.points
-    }
-
-    /// The target plane, when one was given.
-    pub fn plane(&self) -> Option<&TargetPlane> {
-        self.plane.as_ref()
-    }
-
-    /// The moments of the point set, computed once, at the first call, and shared by every feature afterwards.
-    ///
-    /// # Errors
-    /// [`FeatureError::NonFiniteResult`] when the moments overflow (coordinates beyond about 1e75).
-    pub fn moments(&self) -> Result<&Moments, FeatureError> {
-        let moments = self.moments.get_or_init(|| {
-            Moments::compute(self.points, |p| inverse_depth(self.plane.as_ref(), p))
-        });
-        if moments.is_finite() {
-            Ok(moments)
-        } else {
-            Err(FeatureError::NonFiniteResult { feature: "moments" })
-        }
-    }
-
-    /// Number of observed points (at least 1).
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    /// Always `false`: an observation has at least one point.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
-    /// Inverse depth `1/Z_k` (1/m) of point `k` (plane model when known), or `None` when `k` is out of range.
-    pub fn inverse_depth(&self, k: usize) -> Option<f64> {
-        self.points
-            .get(k)
-            .map(|p| inverse_depth(self.plane.as_ref(), p))
-    }
-
-    /// The image point k and its interaction rows `(L_x, L_y)` \[M28\], or `None` when `k` is out of range.
-    fn point_rows(&self, k: usize) -> Option<(ImagePoint, InteractionRow, InteractionRow)> {
-        let p = self.points.get(k)?;
-        let (lx, ly) = point_interaction(p.x, p.y, inverse_depth(self.plane.as_ref(), p));
-        Some((*p, lx, ly))
-    }
-}
-
-/// Inverse depth of a validated point: plane model when known, `1/Z` otherwise.
-fn inverse_depth(plane: Option<&TargetPlane>, p: &ImagePoint) -> f64 {
-    match plane {
-        Some(plane) => plane.inverse_depth(p.x, p.y),
-        None => 1.0 / p.depth,
-    }
-}
-
-/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), [\[M28\]](crate::theory#m28):
-///
-/// ```text
-/// L_x = [ −ζ   0   xζ   xy      −(1+x²)   y ]
-/// L_y = [  0  −ζ   yζ   1+y²    −xy      −x ]
-/// ```
-pub fn point_interaction(x: f64, y: f64, inverse_depth: f64) -> (InteractionRow, InteractionRow) {
-    let z = inverse_depth;
-    (
-        InteractionRow::new(-z, 0.0, x * z, x * y, -(1.0 + x * x), y),
-        InteractionRow::new(0.0, -z, y * z, 1.0 + y * y, -x * y, -x),
-    )
 }
 
 /// A visual feature: a function `s` (`dim` rows) of the observed image points, with its interaction matrix
@@ -699,176 +413,5 @@ fn write_pairs(s: &mut [f64], mut l: InteractionRows<'_>, pairs: &[(f64, Interac
     for ((dst, mut row), (value, src)) in s.iter_mut().zip(l.row_iter_mut()).zip(pairs) {
         *dst = *value;
         row.copy_from(src);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::testutil::*;
-    use super::*;
-    use approx::assert_relative_eq;
-    use proptest::prelude::*;
-
-    #[test]
-    fn bad_observations_are_errors() {
-        assert_eq!(
-            Observation::new(&[], None).err(),
-            Some(FeatureError::TooFewPoints {
-                feature: "observation",
-                needed: 1,
-                got: 0
-            })
-        );
-        let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
-        pts[1].y = f64::NAN;
-        assert!(matches!(
-            Observation::new(&pts, None),
-            Err(FeatureError::NonFinitePoint { index: 1, .. })
-        ));
-        let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
-        pts[3].depth = f64::INFINITY;
-        assert!(matches!(
-            Observation::new(&pts, None),
-            Err(FeatureError::NonFinitePoint { index: 3, .. })
-        ));
-        for depth in [0.0, -0.2] {
-            let mut pts = rectangle_points_fronto(0.2, 0.1, 0.5);
-            pts[2].depth = depth;
-            assert_eq!(
-                Observation::new(&pts, None).err(),
-                Some(FeatureError::PointBehindCamera { index: 2, depth })
-            );
-        }
-        let pts = rectangle_points_fronto(0.2, 0.1, 0.5);
-        let nan_plane = TargetPlane {
-            a: 0.0,
-            b: f64::NAN,
-            c: 2.0,
-        };
-        assert!(matches!(
-            Observation::new(&pts, Some(&nan_plane)),
-            Err(FeatureError::NonFinitePlane { .. })
-        ));
-        // A plane that passes through the camera's field of view behind it: 1/Z = 10 x + 1 is ≤ 0 at x = −0.2.
-        let behind = TargetPlane {
-            a: 10.0,
-            b: 0.0,
-            c: 1.0,
-        };
-        assert_eq!(
-            Observation::new(&pts, Some(&behind)).err(),
-            Some(FeatureError::PlaneBehindCamera {
-                index: 0,
-                inverse_depth: -1.0
-            })
-        );
-    }
-
-    /// Overflow inside a feature is reported, not returned as a non-finite value.
-    #[test]
-    fn overflow_is_an_error() {
-        let pts = [
-            ImagePoint::new(0.0, 0.0, 1.0),
-            ImagePoint::new(1e70, 0.0, 1.0),
-            ImagePoint::new(0.0, 1e70, 1.0),
-        ];
-        let obs = Observation::new(&pts, None).unwrap();
-        let mut s = [0.0; 2];
-        assert_eq!(
-            VispInvariants.value(&obs, &mut s),
-            Err(FeatureError::NonFiniteResult {
-                feature: "ViSP P_x, P_y"
-            })
-        );
-        let huge = [
-            ImagePoint::new(1e155, 0.0, 1.0),
-            ImagePoint::new(0.0, 0.0, 1.0),
-        ];
-        assert_eq!(
-            Observation::new(&huge, None).unwrap().moments().err(),
-            Some(FeatureError::NonFiniteResult { feature: "moments" })
-        );
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(32))]
-        /// With the true plane, inverse depths and moments agree with the per-point depths.
-        #[test]
-        fn plane_and_depths_agree(pose in tilted_pose_strategy()) {
-            let (pts, plane) = Scene::new(pose, rectangle(0.2, 0.14)).image();
-            let with_plane = Observation::new(&pts, Some(&plane)).unwrap();
-            let with_depths = Observation::new(&pts, None).unwrap();
-            for (k, p) in pts.iter().enumerate() {
-                assert_relative_eq!(with_plane.inverse_depth(k).unwrap(), 1.0 / p.depth, max_relative = 1e-12);
-            }
-            prop_assert_eq!(with_plane.inverse_depth(4), None);
-            let (a, b) = (with_plane.moments().unwrap(), with_depths.moments().unwrap());
-            assert_relative_eq!(a.interaction_mu(2, 1).unwrap(), b.interaction_mu(2, 1).unwrap(), max_relative = 1e-10);
-        }
-
-        /// `value_and_interaction` gives, bit for bit, what `value` and `interaction` give apart (or the same error),
-        /// for every feature, source and depth model, on tilted views and on views where some features degenerate
-        /// (a square seen head-on: isotropic moments; points collapsed onto a segment).
-        #[test]
-        fn the_one_pass_evaluation_equals_the_two_calls(
-            pose in tilted_pose_strategy(),
-            plane in any::<bool>(),
-            shape in 0usize..3,
-        ) {
-            let normalization = AreaNormalization::new(0.6, 0.04).unwrap();
-            let features: Vec<BoxedFeature> = vec![
-                Box::new(Centroid::new(0.7).unwrap()),
-                Box::new(NormalizedCentroid::new(normalization)),
-                Box::new(DiagonalAngle::default()),
-                Box::new(DiagonalAngle::new(3, 1).unwrap()),
-                Box::new(MomentOrientation),
-                Box::new(CentredMoment::new(2, 1).unwrap()),
-                Box::new(AreaNormalized::new(normalization)),
-                Box::new(PaperInvariants::new(normalization)),
-                Box::new(VispInvariants),
-                Box::new(SideRatios),
-                Box::new(Point::new(2)),
-                Box::new(AllPoints::new(4).unwrap()),
-                Box::new(FeatureSet::paper_full(Centroid::new(0.7).unwrap(), DiagonalAngle::default(), normalization)),
-                Box::new(FeatureSet::visp_moments(normalization)),
-            ];
-            let object = match shape {
-                0 => rectangle(0.2, 0.14),
-                1 => rectangle(0.2, 0.2),
-                _ => rectangle(0.2, 0.0),
-            };
-            // The square is seen head-on (turned about the optical axis only).
-            let pose = if shape == 1 { testutil::pose(0.01, -0.02, 0.6, 0.0, 0.0, 0.3) } else { pose };
-            let scene = Scene::new(pose, object);
-            let (points, target_plane) = scene.image();
-            let observation = Observation::new(&points, plane.then_some(&target_plane)).unwrap();
-            for feature in &features {
-                for source in [InteractionSource::Exact, InteractionSource::PaperApprox, InteractionSource::Desired] {
-                    let rows = feature.dim();
-                    let (mut s_apart, mut l_apart) = (vec![0.0; rows], crate::task::InteractionMatrix::zeros(rows));
-                    let apart = feature
-                        .value(&observation, &mut s_apart)
-                        .and_then(|()| feature.interaction(&observation, source, l_apart.rows_mut(0, rows)));
-                    let (mut s_once, mut l_once) = (vec![0.0; rows], crate::task::InteractionMatrix::zeros(rows));
-                    let once = feature.value_and_interaction(&observation, source, &mut s_once, l_once.rows_mut(0, rows));
-                    prop_assert_eq!(&once, &apart, "{} with {:?}", feature.name(), source);
-                    if once.is_ok() {
-                        prop_assert_eq!(&s_once, &s_apart, "{}", feature.name());
-                        prop_assert_eq!(&l_once, &l_apart, "{} with {:?}", feature.name(), source);
-                    }
-                }
-            }
-        }
-
-        /// Errors of angle rows land in (−π, π] and equal s − s* modulo 2π.
-        #[test]
-        fn angle_errors_are_wrapped(s in -10.0..10.0f64, s_star in -10.0..10.0f64) {
-            let mut e = [0.0];
-            DiagonalAngle::default().error(&[s], &[s_star], &mut e).unwrap();
-            let pi = std::f64::consts::PI;
-            prop_assert!(e[0] > -pi && e[0] <= pi);
-            let turns = (s - s_star - e[0]) / (2.0 * pi);
-            prop_assert!((turns - turns.round()).abs() < 1e-9);
-        }
     }
 }

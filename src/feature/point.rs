@@ -1,6 +1,22 @@
 //! Image point features, [\[M28\]](crate::theory#m28) ([§7.1](crate::theory#s7-1)).
 
-use super::{Feature, FeatureError, InteractionRows, InteractionSource, Observation};
+use super::{
+    Feature, FeatureError, InteractionRow, InteractionRows, InteractionSource, Observation,
+};
+
+/// Interaction rows of an image point `(x, y)` with inverse depth `ζ = 1/Z` (1/m), [\[M28\]](crate::theory#m28):
+///
+/// ```text
+/// L_x = [ −ζ   0   xζ   xy      −(1+x²)   y ]
+/// L_y = [  0  −ζ   yζ   1+y²    −xy      −x ]
+/// ```
+pub fn point_interaction(x: f64, y: f64, inverse_depth: f64) -> (InteractionRow, InteractionRow) {
+    let z = inverse_depth;
+    (
+        InteractionRow::new(-z, 0.0, x * z, x * y, -(1.0 + x * x), y),
+        InteractionRow::new(0.0, -z, y * z, 1.0 + y * y, -x * y, -x),
+    )
+}
 
 /// The image point number `index`: `s = (x_k, y_k)` (normalised), interaction rows \[M28\] with the point's exact
 /// depth. The paper has no approximate form for points, so every [`InteractionSource`] uses \[M28\] on the observation

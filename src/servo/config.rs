@@ -1,0 +1,308 @@
+//! The façade's configuration ([`ServoConfig`]: models, desired image, tasks and parameters with their defaults) and
+//! how [`VisualServo::new`] builds a servo from it.
+
+use super::step::check_pixel;
+use super::{AdaptiveGain, ServoError, ServoOutput, VisualServo, MAX_TASKS};
+use crate::avoidance::JointLimits;
+use crate::camera::{CalibratedCamera, EyeInHand, ImagePoint};
+use crate::controller::{ControllerParameters, StackController};
+use crate::depth::DepthSource;
+use crate::feature::{InteractionSource, Observation};
+use crate::law::ControlLaw;
+use crate::math::JointVector;
+use crate::robot::{KinematicsWorkspace, SerialChain};
+use crate::target::RectangleTarget;
+use crate::task::{TaskError, TaskValue};
+use crate::visual_task::{
+    classical_task_with, image_points_task, paper_tasks_with, FourthTask, VisualContext,
+};
+use nalgebra::{Isometry3, Point2, Vector6};
+
+/// The desired image of the target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DesiredImage {
+    /// The desired pose of the target in the camera frame, `cdMo` (m, rotation): the desired points and their depths
+    /// are projected from the target model; the desired depth `Z*` of `a_n` is its translation's `z`.
+    Pose(Isometry3<f64>),
+    /// Taught pixels (px, measured through the same camera, so a calibration error cancels at the goal) with the
+    /// depth `Z*` (m) of the target at the goal, given to every point.
+    Pixels {
+        /// The four corners (px), in the target's order.
+        pixels: [(f64, f64); 4],
+        /// The desired depth `Z*` (m, > 0).
+        depth_m: f64,
+    },
+}
+
+/// Which tasks drive the robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TaskChoice {
+    /// The paper's sequence, stacked by the controller: centroid, angle, `a_n`, and the fourth task
+    /// ([`FourthTask::Auto`]: `P_x, P_y`, or the side ratios on a square seen head-on), with gains `λ_i` (s⁻¹); and, in
+    /// reserve, the four image points at the fourth task's gain, which take its place when the stack settles with the
+    /// corners away from their desired positions ([D23](crate::theory#d23)).
+    Sequence {
+        /// `λ_1 … λ_4` (s⁻¹, > 0).
+        gains: [f64; 4],
+        /// The fourth task's feature.
+        fourth: FourthTask,
+    },
+    /// The classical law: the same six features in one task of gain `λ` (s⁻¹).
+    Classical {
+        /// `λ` (s⁻¹, > 0).
+        gain: f64,
+        /// The sixth feature pair's choice.
+        fourth: FourthTask,
+    },
+}
+
+impl Default for TaskChoice {
+    fn default() -> Self {
+        Self::Sequence {
+            gains: [0.5; 4],
+            fourth: FourthTask::Auto,
+        }
+    }
+}
+
+/// Everything [`VisualServo::new`] needs. [`ServoConfig::new`] takes the models and sets every parameter to its
+/// default; change the public fields to tune.
+#[derive(Debug, Clone)]
+pub struct ServoConfig<const N: usize> {
+    /// The robot: joint axes and position limits (rad for revolute, m for prismatic joints).
+    pub chain: SerialChain<N>,
+    /// Where the camera is mounted on the end effector (`eMc`).
+    pub mount: EyeInHand,
+    /// The calibrated camera: intrinsics (px), image size (px) and lens distortion.
+    pub camera: CalibratedCamera,
+    /// The target model (m, object frame); the corners are given in the order of [`RectangleTarget::points`].
+    pub target: RectangleTarget,
+    /// The desired image.
+    pub desired: DesiredImage,
+    /// The tasks (default: the paper's sequence, `λ_i = 0.5 s⁻¹`, [`FourthTask::Auto`]).
+    pub tasks: TaskChoice,
+    /// Where `L_i` is evaluated (default: exact, on the current image).
+    pub interaction: InteractionSource,
+    /// The transition gain `μ` (s⁻¹) of [D1](crate::theory#d1); `None` (default): `10 · max_i λ_i` (with an adaptive
+    /// gain, `10 · max(λ(0), λ(∞))`).
+    pub transition_gain: Option<f64>,
+    /// The avoidance gain `κ` (s⁻¹, ≥ 0; 0 disables the projected gradient) of [\[M18\]](crate::theory#m18). Default 10.
+    pub avoidance_gain: f64,
+    /// The activation ratio `ρ` of the joint-limit cost ([\[M19\]](crate::theory#m19)): the cost is active in the outer
+    /// `ρ` fraction of each joint's range at each end (in `(0, 0.5)`). Default 0.1.
+    pub activation_ratio: f64,
+    /// The stack controller's parameters (push, removal, re-insertion).
+    pub controller: ControllerParameters,
+    /// Where the points' depths come from (default: each point's depth in the desired image).
+    pub depth: DepthSource,
+    /// `q̇_i^max` per joint (rad/s for revolute, m/s for prismatic joints, > 0; `+∞`: no limit). Default: no limit.
+    pub max_joint_velocity: JointVector<N>,
+    /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's constant gain (default `None`: the constant gains).
+    pub adaptive_gain: Option<AdaptiveGain>,
+    /// The servo has converged when every task is stacked and `‖e_i‖ < convergence_error` for each (in the tasks'
+    /// units: normalised image coordinates, rad, dimensionless; see [`ServoOutput::converged`]). Default 1e−4.
+    pub convergence_error: f64,
+    /// Whether the centroid task (the first) is never removed ([D6](crate::theory#d6)): it keeps the target in the
+    /// image. Default `true`.
+    pub protect_centroid: bool,
+}
+
+impl<const N: usize> ServoConfig<N> {
+    /// The models, with every parameter at its default (see each field).
+    pub fn new(
+        chain: SerialChain<N>,
+        mount: EyeInHand,
+        camera: CalibratedCamera,
+        target: RectangleTarget,
+        desired: DesiredImage,
+    ) -> Self {
+        Self {
+            chain,
+            mount,
+            camera,
+            target,
+            desired,
+            tasks: TaskChoice::default(),
+            interaction: InteractionSource::Exact,
+            transition_gain: None,
+            avoidance_gain: 10.0,
+            activation_ratio: JointLimits::<N>::DEFAULT_ACTIVATION_RATIO,
+            controller: ControllerParameters::default(),
+            depth: DepthSource::Desired,
+            max_joint_velocity: JointVector::repeat(f64::INFINITY),
+            adaptive_gain: None,
+            convergence_error: 1e-4,
+            protect_centroid: true,
+        }
+    }
+}
+
+impl<const N: usize> VisualServo<N> {
+    /// Builds the servo: desired image, tasks, controller, law, joint-limit cost, depth estimator.
+    ///
+    /// # Errors
+    /// [`ServoError::InvalidParameter`] (velocity limits, convergence threshold, desired depth),
+    /// [`ServoError::UnsupportedDepthSource`], and the models' errors (a desired corner that does not undistort, a
+    /// feature undefined on the desired image, invalid gains, `μ`, `κ`, `ρ`, controller or depth parameters).
+    pub fn new(config: ServoConfig<N>) -> Result<Self, ServoError> {
+        let invalid = |name, value, expected| ServoError::InvalidParameter {
+            name,
+            value,
+            expected,
+        };
+        if let Some(v) = config
+            .max_joint_velocity
+            .iter()
+            .find(|v| v.is_nan() || **v <= 0.0)
+        {
+            return Err(invalid("max_joint_velocity", *v, "> 0 (or +∞)"));
+        }
+        let e = config.convergence_error;
+        if !(e.is_finite() && e > 0.0) {
+            return Err(invalid("convergence_error", e, "finite and > 0"));
+        }
+        if config.depth == DepthSource::PreviousPlane {
+            return Err(ServoError::UnsupportedDepthSource);
+        }
+        config.depth.validate()?;
+        let (desired_points, desired_depth) = desired_points(&config)?;
+        let desired =
+            Observation::new(&desired_points, None).map_err(|source| TaskError::Feature {
+                name: "desired image".into(),
+                source,
+            })?;
+        let tasks = match config.tasks {
+            TaskChoice::Sequence { gains, fourth } => {
+                let mut tasks = paper_tasks_with(
+                    &desired,
+                    desired_depth,
+                    desired_depth,
+                    gains,
+                    config.interaction,
+                    fourth,
+                )?;
+                tasks.push(image_points_task(&desired, gains[3], config.interaction)?);
+                tasks
+            }
+            TaskChoice::Classical { gain, fourth } => vec![classical_task_with(
+                &desired,
+                desired_depth,
+                desired_depth,
+                gain,
+                config.interaction,
+                fourth,
+            )?],
+        };
+        let values: Vec<TaskValue<N>> = tasks
+            .iter()
+            .map(TaskValue::for_task::<VisualContext<'_, N>, _>)
+            .collect::<Result<_, _>>()?;
+        let max_gain = match config.adaptive_gain {
+            Some(adaptive) => adaptive.max_gain(),
+            None => values.iter().map(TaskValue::gain).fold(0.0, f64::max),
+        };
+        let mu = config
+            .transition_gain
+            .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
+        let law = ControlLaw::new(mu, config.avoidance_gain)?;
+        let protected: &[usize] = if config.protect_centroid && tasks.len() > 1 {
+            &[0]
+        } else {
+            &[]
+        };
+        let limits = JointLimits::new(
+            *config.chain.lower_limits(),
+            *config.chain.upper_limits(),
+            config.activation_ratio,
+        )?;
+        let mut controller = StackController::new(config.controller, &values)?
+            .with_protected_tasks(protected)?
+            .with_joint_limits(limits.clone())?;
+        if matches!(config.tasks, TaskChoice::Sequence { .. }) {
+            controller = controller.with_reserve_task()?;
+        }
+        let estimator = config.depth.estimator(4)?;
+        let task_count = tasks.len();
+        let mut task_gains = [0.0; MAX_TASKS];
+        for (g, v) in task_gains.iter_mut().zip(&values) {
+            *g = v.gain();
+        }
+        Ok(Self {
+            chain: config.chain,
+            mount: config.mount,
+            camera: config.camera,
+            tasks,
+            values,
+            controller,
+            law,
+            limits,
+            kinematics: KinematicsWorkspace::new(),
+            depth: config.depth,
+            estimator,
+            target: config.target,
+            desired_points,
+            max_velocity: config.max_joint_velocity,
+            adaptive: config.adaptive_gain,
+            convergence_error: config.convergence_error,
+            start_time: None,
+            last_time: f64::NEG_INFINITY,
+            last_points: [Point2::origin(); 4],
+            twist_sum: Vector6::zeros(),
+            twist_time: 0.0,
+            iteration: 0,
+            output: ServoOutput {
+                velocity: JointVector::zeros(),
+                unscaled_velocity: JointVector::zeros(),
+                scale: 1.0,
+                scaled: false,
+                error_norm: f64::NAN,
+                task_errors: [f64::NAN; MAX_TASKS],
+                task_gains,
+                task_count,
+                stack: [0; MAX_TASKS],
+                stack_len: 0,
+                event: None,
+                held: false,
+                locked: [false; N],
+                stack_velocity_norm: f64::NAN,
+                converged: false,
+                depths: [f64::NAN; 4],
+                camera_twist: Vector6::zeros(),
+                new_frame: false,
+                iteration: 0,
+            },
+        })
+    }
+}
+
+/// The desired points (normalised, with depths) and the desired depth `Z*` (m).
+fn desired_points<const N: usize>(
+    config: &ServoConfig<N>,
+) -> Result<([ImagePoint; 4], f64), ServoError> {
+    let mut points = [ImagePoint::default(); 4];
+    match config.desired {
+        DesiredImage::Pose(c_from_o) => {
+            crate::camera::project_points(&c_from_o, config.target.points(), &mut points)?;
+            Ok((points, c_from_o.translation.z))
+        }
+        DesiredImage::Pixels { pixels, depth_m } => {
+            if !(depth_m.is_finite() && depth_m > 0.0) {
+                return Err(ServoError::InvalidParameter {
+                    name: "desired depth_m",
+                    value: depth_m,
+                    expected: "finite and > 0 (m)",
+                });
+            }
+            let intrinsics = &config.camera.intrinsics;
+            for (index, ((u, v), point)) in pixels.iter().zip(points.iter_mut()).enumerate() {
+                check_pixel(index, *u, *v, intrinsics.width(), intrinsics.height())?;
+                let (x, y) = config
+                    .camera
+                    .normalized_of(*u, *v)
+                    .map_err(|source| ServoError::Undistortion { index, source })?;
+                *point = ImagePoint::new(x, y, depth_m);
+            }
+            Ok((points, depth_m))
+        }
+    }
+}
