@@ -298,6 +298,11 @@ pub fn solve_stack<'w, const N: usize>(
         free -= 1;
     }
     solution.levels.clear();
+    // The certified paths answer only where the SVD path would give the same velocity: for the filtered inverse (D30),
+    // at levels whose every singular value clears the filter's floor.
+    let certifiable = parameters
+        .velocity_inverse
+        .certifiable_policy(&parameters.rank_policy);
     let levels = order.iter().enumerate().zip(svds.iter_mut());
     for (((level, &index), svd), try_certified) in levels.zip(try_certified.iter_mut()) {
         let task = checked_task(tasks, level, index, limited.nrows())?;
@@ -331,19 +336,20 @@ pub fn solve_stack<'w, const N: usize>(
         // a level that sees every joint direction free (P^A_{i−1} = I) with at least N rows, of full column rank N
         // (J̃_i⁺ r is then the least-squares solution); a level of one or two rows of full row rank (J̃_i⁺ = J̃_iᵀ G⁻¹ and
         // its row-space projector in closed form). Otherwise, and for damped least squares, the SVD.
-        let truncated = parameters.velocity_inverse == VelocityInverse::Truncated;
-        let eligible = free == N && rows >= N && truncated;
         let policy = &parameters.rank_policy;
-        let certified = if eligible && *try_certified {
-            solve_full_column_rank(&limited_jacobian, &r, policy, scale, step)
-                .map(|bound| (N, bound))
-        } else if rows <= 2 && truncated {
-            // A level that takes the last free directions leaves P^A_i = 0 (set below): no update to compute.
-            let projector = (free > rows).then_some(&mut solution.projector);
-            solve_small_stack_level(&limited_jacobian, &r, policy, scale, step, projector)
-                .map(|sigma_min| (rows, sigma_min))
-        } else {
-            None
+        let eligible = free == N && rows >= N && certifiable.is_some();
+        let certified = match &certifiable {
+            Some(certifiable) if eligible && *try_certified => {
+                solve_full_column_rank(&limited_jacobian, &r, certifiable, scale, step)
+                    .map(|bound| (N, bound))
+            }
+            Some(certifiable) if rows <= 2 => {
+                // A level that takes the last free directions leaves P^A_i = 0 (set below): no update to compute.
+                let projector = (free > rows).then_some(&mut solution.projector);
+                solve_small_stack_level(&limited_jacobian, &r, certifiable, scale, step, projector)
+                    .map(|sigma_min| (rows, sigma_min))
+            }
+            _ => None,
         };
         let (rank, smallest_kept_singular_value) = match certified {
             Some((rank, sigma_min)) => (rank, Some(sigma_min)),
@@ -360,14 +366,13 @@ pub fn solve_stack<'w, const N: usize>(
                 // (‖J̃‖_F = ‖J_i‖_F here, since P^A_{i−1} = I); for a square level, whose rows are equilibrated first
                 // (the bound then applies to a condition number the SVD of J_i does not give), if σ_min clears the
                 // certificate's rank test, which no bound below σ_min can pass otherwise.
-                *try_certified = eligible
-                    && rank == N
-                    && smallest.is_some_and(|s| {
-                        if rows == N {
-                            s > rank_test_threshold::<N>(policy, scale, scale)
-                        } else {
-                            s * FAST_PATH_CONDITION_BOUND >= scale
+                *try_certified = rank == N
+                    && smallest.is_some_and(|s| match &certifiable {
+                        Some(certifiable) if eligible && rows == N => {
+                            s > rank_test_threshold::<N>(certifiable, scale, scale)
                         }
+                        Some(_) if eligible => s * FAST_PATH_CONDITION_BOUND >= scale,
+                        _ => false,
                     });
                 (rank, smallest)
             }

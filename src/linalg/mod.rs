@@ -7,6 +7,7 @@
 //! ```text
 //! J̃⁺ r   = Σ_{k kept} v_k (u_kᵀ r) / σ_k                (truncated, theory §2.1.1)
 //! J̃^{#δ} r = Σ_k v_k σ_k (u_kᵀ r) / (σ_k² + δ²)         (damped least squares, theory §2.1.2)
+//! J̃^{#ε} r = Σ_{k kept} v_k σ_k (u_kᵀ r) / max(σ_k², ε²)  (filtered: gains capped at 1/ε, D30)
 //! J̃⁺ J̃   = Σ_{k kept} v_k v_kᵀ                          (always truncated and exact, D2)
 //! ```
 //!
@@ -65,6 +66,12 @@ pub enum LinalgError {
         relative: f64,
         /// The absolute threshold given.
         absolute: f64,
+    },
+    /// The floor of the filtered inverse is outside `[0, 1)`.
+    #[error("invalid singular-value floor {floor} (need 0 ≤ floor < 1)")]
+    InvalidFilterFloor {
+        /// The floor given.
+        floor: f64,
     },
     /// The damping factor of damped least squares is negative or not finite.
     #[error("invalid damping δ = {damping} (need a finite δ ≥ 0)")]
@@ -165,15 +172,41 @@ pub enum VelocityInverse {
         /// The damping `δ` (same unit as the singular values of `J̃`).
         damping: f64,
     },
+    /// The truncated pseudo-inverse with every kept singular value's inverse capped at `1/ε`,
+    /// `ε = floor · max(σ_max(J̃), reference)` (the rank policy's reference, `‖J_i‖_F` for a stack level):
+    /// `Σ_k v_k σ_k (u_kᵀ r) / max(σ_k², ε²)`, numerical filtering (damping only the singular values below `ε`, with
+    /// `δ_k² = ε² − σ_k²`; [D30](crate::theory#d30)). Equal to [`Self::Truncated`] when every kept `σ_k ≥ ε`,
+    /// continuous in `σ_k`, and no direction's gain exceeds `1/ε`.
+    Filtered {
+        /// `ε` relative to the level's scale (`0 ≤ floor < 1`; 0 is the truncated pseudo-inverse).
+        floor: f64,
+    },
 }
 
 impl VelocityInverse {
-    /// Checks the damping factor.
+    /// Checks the damping factor or the filter's floor.
     pub fn validate(&self) -> Result<(), LinalgError> {
         match *self {
             Self::Truncated => Ok(()),
             Self::Damped { damping } if damping.is_finite() && damping >= 0.0 => Ok(()),
             Self::Damped { damping } => Err(LinalgError::InvalidDamping { damping }),
+            Self::Filtered { floor } if (0.0..1.0).contains(&floor) => Ok(()),
+            Self::Filtered { floor } => Err(LinalgError::InvalidFilterFloor { floor }),
+        }
+    }
+
+    /// The rank policy under which a certified fast path ([D15](crate::theory#d15)) may answer for this inverse: the
+    /// policy itself, or for [`Self::Filtered`] one whose relative threshold is at least the floor, so that a level
+    /// certified has every `σ_k > ε` and its truncated pseudo-inverse is the filtered one; `None` for
+    /// [`Self::Damped`], which always takes the SVD.
+    pub fn certifiable_policy(&self, policy: &RankPolicy) -> Option<RankPolicy> {
+        match *self {
+            Self::Truncated => Some(*policy),
+            Self::Filtered { floor } => Some(RankPolicy {
+                relative: policy.relative.max(floor),
+                absolute: policy.absolute,
+            }),
+            Self::Damped { .. } => None,
         }
     }
 }

@@ -14,6 +14,8 @@ pub struct ColumnSvd<const N: usize> {
     pub(super) sigma: JointVector<N>,
     /// The cut-off chosen by the rank policy at the last decomposition.
     threshold: f64,
+    /// The scale the relative thresholds were taken against at the last decomposition, `max(σ_max, reference_scale)`.
+    reference: f64,
     /// `Some(k)` when `v` is a full orthogonal basis that has been through `k` warm starts since the last cold one.
     basis_age: Option<u32>,
 }
@@ -32,6 +34,7 @@ impl<const N: usize> Default for ColumnSvd<N> {
             v: JointMatrix::identity(),
             sigma: JointVector::zeros(),
             threshold: 0.0,
+            reference: 0.0,
             basis_age: None,
         }
     }
@@ -154,7 +157,8 @@ impl<const N: usize> ColumnSvd<N> {
             }
             self.basis_age = Some(age.map_or(0, |age| age + 1));
         }
-        self.threshold = policy.threshold(self.sigma_max().max(reference_scale));
+        self.reference = self.sigma_max().max(reference_scale);
+        self.threshold = policy.threshold(self.reference);
         Ok(())
     }
 
@@ -282,7 +286,8 @@ impl<const N: usize> ColumnSvd<N> {
     }
 
     /// Writes `A^{inv} r` into `out`, where `work` is the `W = A V` left by [`Self::decompose`] and the inverse is the
-    /// truncated pseudo-inverse or damped least squares ([theory §2.1.2](crate::theory#s2-1-2)).
+    /// truncated pseudo-inverse, damped least squares ([theory §2.1.2](crate::theory#s2-1-2)) or the filtered inverse
+    /// ([D30](crate::theory#d30)).
     ///
     /// # Errors
     /// [`LinalgError::DimensionMismatch`] when `r` and `work` have different row counts.
@@ -304,7 +309,11 @@ impl<const N: usize> ColumnSvd<N> {
             let sigma_sq = self.sigma[k] * self.sigma[k];
             let weight = match inverse {
                 VelocityInverse::Truncated if self.is_kept(k) => 1.0 / sigma_sq,
-                VelocityInverse::Truncated => continue,
+                VelocityInverse::Filtered { floor } if self.is_kept(k) => {
+                    let epsilon = floor * self.reference;
+                    1.0 / sigma_sq.max(epsilon * epsilon)
+                }
+                VelocityInverse::Truncated | VelocityInverse::Filtered { .. } => continue,
                 VelocityInverse::Damped { damping } if sigma_sq + damping * damping > 0.0 => {
                     1.0 / (sigma_sq + damping * damping)
                 }

@@ -238,6 +238,74 @@ fn closed_form_levels_match_the_svd<const N: usize>(
     Ok(())
 }
 
+/// D30: the stack with the filtered inverse (`floor` relative to each level's scale) against the formula, level by
+/// level on a dense SVD (nalgebra's, not the crate's): `q̇ += Σ_{σ_k kept} v_k σ_k (u_kᵀ r) / max(σ_k², ε²)`,
+/// `ε = floor · max(σ_max(J̃_i), ‖J_i‖_F)`, the projector truncated as in D2. On the same random and nearly repeated
+/// stacks as the closed-form test, so that levels fall on both sides of `ε` and both the certified paths and the SVD
+/// answer. The filtered gains are at most `1/ε`, so rounding is amplified by at most `min(ρ, 1/floor)²`.
+fn filtered_levels_match_their_formula<const N: usize>(
+    data: &[f64],
+    rows: &[usize],
+    near_repeat: f64,
+    floor: f64,
+) -> Result<(), TestCaseError> {
+    let mut tasks = random_tasks::<N>(data, rows);
+    let last = tasks.len() - 1;
+    let mut jacobian = tasks[last].jacobian().clone();
+    let first_row = tasks[0].jacobian().row(0).into_owned();
+    let fresh = jacobian.row(0).into_owned();
+    jacobian
+        .row_mut(0)
+        .copy_from(&(first_row + fresh * near_repeat));
+    tasks[last] = TaskValue::from_parts(
+        "near repeat",
+        tasks[last].error().clone(),
+        jacobian,
+        tasks[last].gain(),
+    )
+    .unwrap();
+    let order: Vec<usize> = (0..tasks.len()).collect();
+    let parameters = StackParameters {
+        velocity_inverse: VelocityInverse::Filtered { floor },
+        ..StackParameters::default()
+    };
+    let mut ws = StackWorkspace::new(&tasks);
+    let solution = solve_stack(&parameters, &mut ws, &tasks, &order).unwrap();
+    let mut velocity = DVector::<f64>::zeros(N);
+    let mut projector = DMatrix::<f64>::identity(N, N);
+    let mut rho: f64 = 1.0;
+    for task in &tasks {
+        let jacobian = DMatrix::from_fn(task.rows(), N, |i, j| task.jacobian()[(i, j)]);
+        let error = DVector::from_fn(task.rows(), |i, _| task.error()[i]);
+        let r = -error * task.gain() - &jacobian * &velocity;
+        let limited = &jacobian * &projector;
+        let svd = limited.clone().svd(true, true);
+        let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
+        let reference = svd.singular_values.max().max(jacobian.norm());
+        let threshold =
+            (RankPolicy::DEFAULT_RELATIVE * reference).max(RankPolicy::DEFAULT_ABSOLUTE);
+        let epsilon = floor * reference;
+        for (k, &sigma) in svd.singular_values.iter().enumerate() {
+            if sigma <= threshold {
+                continue;
+            }
+            let v = v_t.row(k).transpose();
+            velocity += &v * (sigma * u.column(k).dot(&r) / (sigma * sigma).max(epsilon * epsilon));
+            projector -= &v * v.transpose();
+            rho = rho.max(jacobian.norm() / sigma.max(epsilon));
+        }
+    }
+    let computed = DVector::from_column_slice(solution.velocity().as_slice());
+    let difference = (&computed - &velocity).norm();
+    let tolerance = 1e-13 * rho * rho * velocity.norm().max(1.0);
+    prop_assert!(
+        difference <= tolerance,
+        "|q̇ − q̇_formula| = {difference:e}, |q̇| = {:e}, ρ = {rho:e}",
+        velocity.norm()
+    );
+    Ok(())
+}
+
 /// D26: a stack solved with some joints locked (`P^A_0 = I − Σ e_i e_iᵀ`) is the stack of the same tasks whose
 /// Jacobians lose the locked columns: the same `q̇_n`, zero on the locked joints, and the same `P^A_n` less the locked
 /// directions (which the column-less stack leaves free). The reference goes through the unlocked solver, whose first
@@ -326,6 +394,20 @@ proptest! {
     #[test]
     fn closed_form_levels_n7(d in data(120), exponent in 0.0..8.0f64) {
         closed_form_levels_match_the_svd::<7>(&d, &[2, 1, 1, 2, 1], 10f64.powf(-exponent))?;
+    }
+
+    #[test]
+    fn filtered_levels_n6(d in data(120), exponent in 0.0..8.0f64, floor_exponent in 2.0..5.0f64) {
+        let near_repeat = if exponent < 1.0 { 1.0 } else { 10f64.powf(-exponent) };
+        let floor = 10f64.powf(-floor_exponent);
+        filtered_levels_match_their_formula::<6>(&d, &[2, 1, 1, 2], near_repeat, floor)?;
+        filtered_levels_match_their_formula::<6>(&d, &[1, 2, 1, 1], near_repeat, floor)?;
+        filtered_levels_match_their_formula::<6>(&d, &[8, 2], near_repeat, floor)?;
+    }
+
+    #[test]
+    fn filtered_levels_n7(d in data(120), exponent in 0.0..8.0f64, floor_exponent in 2.0..5.0f64) {
+        filtered_levels_match_their_formula::<7>(&d, &[2, 1, 1, 2, 1], 10f64.powf(-exponent), 10f64.powf(-floor_exponent))?;
     }
 
     #[test]
