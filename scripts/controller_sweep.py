@@ -35,6 +35,7 @@ RULES = [
     ("D26 lock", "controller.lock_band", "0"),
     ("D28 early push", "controller.early_push_ratio", "inf"),
     ("D29 restart", "controller.restart_rate", "0"),
+    ("D30 filter", "controller.singular_value_floor", "0"),
 ]
 
 # The controller's numeric parameters (those whose default is not 0 or infinite: a scale leaves those unchanged).
@@ -57,6 +58,7 @@ PARAMETERS = [
     "restart_rate",
     "restart_centre_band",
     "restart_timeout",
+    "singular_value_floor",
 ]
 
 

@@ -222,6 +222,15 @@ pub struct ControllerParameters {
     /// `T_restart` (s): the recentring ends after this long even if a joint has not reached the middle of its range
     /// (D29; default 5 s, the stall timeout's).
     pub restart_timeout: f64,
+    /// `ε_σ`, the floor of D30 relative to each level's scale: the law inverts every stack level with the gain of each
+    /// singular direction capped at `1/ε` (`ε = ε_σ · max(σ_max(J̃_i), ‖J_i‖_F)`, [`VelocityInverse::Filtered`]), so a
+    /// level that is nearly singular — a task left with too few free joints by a locked joint or a higher level — is
+    /// achieved more slowly in that direction instead of being inverted at gains up to `10⁶` that the velocity limits
+    /// then scale, and that flip sign from one period to the next. Levels whose singular values all clear `ε` are
+    /// solved as by the truncated pseudo-inverse. The projectors stay exact (D2). Default `3·10⁻⁴`; `0` switches it off
+    /// (the truncated pseudo-inverse of D2); valid in `[0, 0.01]`. Full method only in the study (the baselines are
+    /// the paper's laws).
+    pub singular_value_floor: f64,
     /// How the full method keeps the joints inside their hard limits: the braking and the lock (D25, D26, default), or
     /// saturation in the null space (theory §13), which then replaces both (`braking_rate` and `lock_band` unused).
     pub hard_limit_rule: HardLimitRule,
@@ -255,6 +264,7 @@ impl Default for ControllerParameters {
             restart_rate: 1.0,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
+            singular_value_floor: 3e-4,
             hard_limit_rule: HardLimitRule::BrakeAndLock,
         }
     }
@@ -411,7 +421,26 @@ impl ControllerParameters {
             v > 0.0 && in_range(v, 0.0, 0.5),
             "in (0, 0.5]",
         )?;
+        let v = self.singular_value_floor;
+        check(
+            "singular_value_floor",
+            v,
+            in_range(v, 0.0, 0.01),
+            "in [0, 0.01] (0: the truncated pseudo-inverse)",
+        )?;
         Ok(())
+    }
+
+    /// The inverse of the law's stack levels that [`Self::singular_value_floor`] asks for (D30): filtered, or the
+    /// truncated pseudo-inverse of D2 when the floor is 0.
+    pub fn velocity_inverse(&self) -> VelocityInverse {
+        if self.singular_value_floor > 0.0 {
+            VelocityInverse::Filtered {
+                floor: self.singular_value_floor,
+            }
+        } else {
+            VelocityInverse::Truncated
+        }
     }
 
     /// `T = max(T_min, n_look/μ)` (s), the removal prediction's horizon for a transition gain `μ` (s⁻¹); `T_min` alone

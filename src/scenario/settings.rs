@@ -360,13 +360,13 @@ impl Settings {
             .avoidance
             .transition_gain
             .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
+        // Damping, when asked for, applies to every method; otherwise the full method filters its near-singular levels
+        // (D30) and the baselines keep the paper's truncated pseudo-inverse.
         let stack = StackParameters {
-            velocity_inverse: if self.tasks.damping == 0.0 {
-                VelocityInverse::Truncated
-            } else {
-                VelocityInverse::Damped {
-                    damping: self.tasks.damping,
-                }
+            velocity_inverse: match self.tasks.damping {
+                0.0 if full_method => self.controller.velocity_inverse(),
+                0.0 => VelocityInverse::Truncated,
+                damping => VelocityInverse::Damped { damping },
             },
             ..StackParameters::default()
         };

@@ -11,6 +11,7 @@ use crate::feature::{InteractionSource, Observation};
 use crate::law::ControlLaw;
 use crate::math::JointVector;
 use crate::robot::{KinematicsWorkspace, SerialChain};
+use crate::stack::StackParameters;
 use crate::target::RectangleTarget;
 use crate::task::{TaskError, TaskValue};
 use crate::visual_task::{
@@ -204,7 +205,11 @@ impl<const N: usize> VisualServo<N> {
         let mu = config
             .transition_gain
             .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
-        let law = ControlLaw::new(mu, config.avoidance_gain)?;
+        let stack = StackParameters {
+            velocity_inverse: config.controller.velocity_inverse(),
+            ..StackParameters::default()
+        };
+        let law = ControlLaw::with_stack_parameters(stack, mu, config.avoidance_gain)?;
         let protected: &[usize] = if config.protect_centroid && tasks.len() > 1 {
             &[0]
         } else {

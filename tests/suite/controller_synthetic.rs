@@ -811,6 +811,15 @@ fn invalid_parameters_and_task_count() {
             "early_push_ratio",
         )
     });
+    let floor = [f64::NAN, -1e-4, 0.02, f64::INFINITY].map(|singular_value_floor| {
+        (
+            ControllerParameters {
+                singular_value_floor,
+                ..Default::default()
+            },
+            "singular_value_floor",
+        )
+    });
     let restart = [
         ("restart_rate", [f64::NAN, -1.0, f64::INFINITY]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
@@ -835,6 +844,7 @@ fn invalid_parameters_and_task_count() {
         .chain(braking)
         .chain(lock)
         .chain(early_push)
+        .chain(floor)
         .chain(restart)
     {
         match StackController::new(parameters, &values) {
