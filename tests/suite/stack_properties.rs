@@ -174,19 +174,14 @@ fn svd_only_recursion<const N: usize>(
     (velocity, projector, ranks)
 }
 
-/// The stack with its closed-form levels of one or two rows (D15) against the SVD at every level, on random stacks and
-/// on stacks whose last level nearly repeats a higher one (conditioned from 1 to 10⁸, across the certificate's bound,
-/// so both paths and the switch between them are exercised): the same ranks, the same velocity and projector. The
-/// level itself agrees with the SVD within 1e−12 (`linalg` tests); through a later ill-conditioned level that
-/// rounding grows with the level's conditioning, so the whole stack is compared within a bound that grows with it,
-/// which any error of the closed form (a sign, a row, a missed projector update) exceeds by orders of magnitude.
-fn closed_form_levels_match_the_svd<const N: usize>(
+/// Random tasks whose last task's first row is the first task's first row plus `near_repeat` times a fresh row: the
+/// last level is conditioned about `1/near_repeat` against the first (1: an ordinary random stack).
+fn nearly_repeated_stack<const N: usize>(
     data: &[f64],
     rows: &[usize],
     near_repeat: f64,
-) -> Result<(), TestCaseError> {
+) -> Vec<TaskValue<N>> {
     let mut tasks = random_tasks::<N>(data, rows);
-    // The last task's first row becomes the first task's first row plus a small fresh part.
     let last = tasks.len() - 1;
     let mut jacobian = tasks[last].jacobian().clone();
     let first_row = tasks[0].jacobian().row(0).into_owned();
@@ -201,6 +196,21 @@ fn closed_form_levels_match_the_svd<const N: usize>(
         tasks[last].gain(),
     )
     .unwrap();
+    tasks
+}
+
+/// The stack with its closed-form levels of one or two rows (D15) against the SVD at every level, on random stacks and
+/// on stacks whose last level nearly repeats a higher one (conditioned from 1 to 10⁸, across the certificate's bound,
+/// so both paths and the switch between them are exercised): the same ranks, the same velocity and projector. The
+/// level itself agrees with the SVD within 1e−12 (`linalg` tests); through a later ill-conditioned level that
+/// rounding grows with the level's conditioning, so the whole stack is compared within a bound that grows with it,
+/// which any error of the closed form (a sign, a row, a missed projector update) exceeds by orders of magnitude.
+fn closed_form_levels_match_the_svd<const N: usize>(
+    data: &[f64],
+    rows: &[usize],
+    near_repeat: f64,
+) -> Result<(), TestCaseError> {
+    let tasks = nearly_repeated_stack::<N>(data, rows, near_repeat);
     let order: Vec<usize> = (0..tasks.len()).collect();
     let mut ws = StackWorkspace::new(&tasks);
     let solution = solve_stack(&StackParameters::default(), &mut ws, &tasks, &order).unwrap();
@@ -249,21 +259,7 @@ fn filtered_levels_match_their_formula<const N: usize>(
     near_repeat: f64,
     floor: f64,
 ) -> Result<(), TestCaseError> {
-    let mut tasks = random_tasks::<N>(data, rows);
-    let last = tasks.len() - 1;
-    let mut jacobian = tasks[last].jacobian().clone();
-    let first_row = tasks[0].jacobian().row(0).into_owned();
-    let fresh = jacobian.row(0).into_owned();
-    jacobian
-        .row_mut(0)
-        .copy_from(&(first_row + fresh * near_repeat));
-    tasks[last] = TaskValue::from_parts(
-        "near repeat",
-        tasks[last].error().clone(),
-        jacobian,
-        tasks[last].gain(),
-    )
-    .unwrap();
+    let tasks = nearly_repeated_stack::<N>(data, rows, near_repeat);
     let order: Vec<usize> = (0..tasks.len()).collect();
     let parameters = StackParameters {
         velocity_inverse: VelocityInverse::Filtered { floor },
