@@ -277,9 +277,9 @@ pub fn solve_hqp<'w, const N: usize>(
         Ok::<_, HqpError>((level, Level::Task(index, task)))
     });
     let target_level = std::iter::once(Ok((order.len(), Level::JointTarget(target))));
+    let box_ = VelocityBox { lower, upper };
     for item in task_levels.chain(target_level) {
         let (level, kind) = item?;
-        let box_ = VelocityBox { lower, upper };
         let solved = solve_level(
             parameters, damping, workspace, level, kind, &box_, &mut free,
         )?;
@@ -376,11 +376,14 @@ fn solve_level<const N: usize>(
         *free -= 1;
     }
     let residual = match kind {
-        Level::Task(_, task) => {
-            let mut error = task.jacobian() * velocity;
-            error.axpy(task.gain(), task.error(), 1.0);
-            error.norm()
-        }
+        // Row by row: J_k q̇ + λ e, without a vector of the task's size.
+        Level::Task(_, task) => task
+            .jacobian()
+            .row_iter()
+            .zip(task.error().iter())
+            .map(|(row, e)| (row.dot(&velocity.transpose()) + task.gain() * e).powi(2))
+            .sum::<f64>()
+            .sqrt(),
         Level::JointTarget(target) => (velocity - target).norm(),
     };
     Ok(HqpLevel {

@@ -393,7 +393,10 @@ fn hqp_runs_of_the_limit_scenarios_never_pass_a_bound() {
             "{file}: {:?}",
             run.outcome
         );
-        let limits = scenario.experiment::<6>().unwrap().scene.limits().clone();
+        let experiment = scenario.experiment::<6>().unwrap();
+        let limits = experiment.scene.limits().clone();
+        let joints = experiment.scene.chain().joints();
+        let simulation = &scenario.simulation;
         for record in &run.records {
             let normalized = limits.normalized(&record.q);
             assert!(
@@ -402,14 +405,59 @@ fn hqp_runs_of_the_limit_scenarios_never_pass_a_bound() {
                 record.iteration
             );
         }
-        let max = scenario.simulation.max_revolute_velocity_rad_s;
         for record in &run.records {
-            assert!(
-                record.velocity.amax() <= max,
-                "{file}, iteration {}: {}",
-                record.iteration,
-                record.velocity
-            );
+            for (joint, &v) in joints.iter().zip(record.velocity.iter()) {
+                let max = if joint.kind().is_rotational() {
+                    simulation.max_revolute_velocity_rad_s
+                } else {
+                    simulation.max_prismatic_velocity_m_s
+                };
+                assert!(
+                    v.abs() <= max,
+                    "{file}, iteration {}: {}",
+                    record.iteration,
+                    record.velocity
+                );
+            }
         }
     }
+}
+
+/// The closed-form levels allocate nothing (what the module docs say): a cascade with no bound active, after a first
+/// solve that warms the workspace, makes no heap allocation; one with an active bound does (the QP's).
+#[test]
+fn a_cascade_without_an_active_bound_allocates_nothing() {
+    let data: Vec<f64> = (0..60)
+        .map(|i| ((i * 37 % 23) as f64 / 11.5) - 1.0)
+        .collect();
+    let tasks = random_tasks::<6>(&data, &[2, 1, 1]);
+    let target = JointVector::<6>::repeat(0.1);
+    let mut workspace = HqpWorkspace::with_capacity(2, 3, &HqpParameters::default()).unwrap();
+    let parameters = StackParameters::default();
+    let wide = JointVector::<6>::repeat(1e3);
+    let mut solve = |lower: &JointVector<6>, upper: &JointVector<6>| {
+        solve_hqp(
+            &parameters,
+            &mut workspace,
+            &tasks,
+            &[0, 1, 2],
+            Some(&target),
+            lower,
+            upper,
+        )
+        .unwrap()
+        .levels()
+        .iter()
+        .any(|l| matches!(l.solve, LevelSolve::Qp { .. }))
+    };
+    assert!(!solve(&-wide, &wide));
+    let allocations = crate::counting_allocator::allocations_during(|| {
+        assert!(!solve(&-wide, &wide));
+    });
+    assert_eq!(allocations, 0);
+    let tight = JointVector::<6>::repeat(1e-3);
+    let allocations = crate::counting_allocator::allocations_during(|| {
+        assert!(solve(&-tight, &tight));
+    });
+    assert!(allocations > 0);
 }
