@@ -16,7 +16,8 @@
 //! Variants, for the controller's ablation and sensitivity tables (`scripts/controller_sweep.py`): `--set PATH=VALUE`
 //! sets a field of the scenario (of every arm's, with `--zoo`) by its dotted path, `--scale PATH=FACTOR` multiplies a
 //! number (its default when the file leaves it out), `--method NAME` runs only the methods named (`classical`,
-//! `stack`, `stack_gradient`, `stack_controller`, and `sns`, saturation in the null space, which runs only when named).
+//! `stack`, `stack_gradient`, `stack_controller`, and `sns`, saturation in the null space, and `hqp`, the hierarchical
+//! QP cascade, which run only when named).
 //!
 //! Sharding: `--shard I/N` runs only the draws `d` with `d mod N = I` of every family (of every arm), as one job of a
 //! job array, without the slice; `--merge DIR... [--out OUT]` combines the shards' directories (a study's, or a zoo

@@ -1,6 +1,7 @@
 //! The paper's four runs on the reference scenario (theory §9, D12): classical servoing, the stack, the stack with
-//! projected-gradient avoidance, and the full method with the stack controller; then, as an extra row not from the
-//! paper, saturation in the null space (`sns`, theory §13). Prints a table (its columns
+//! projected-gradient avoidance, and the full method with the stack controller; then, as extra rows not from the
+//! paper, saturation in the null space (`sns`, theory §13) and the hierarchical QP cascade (`hqp`, theory §14). Prints
+//! a table (its columns
 //! explained under it and in `docs/guide/reading_results.md`) and writes the figures (PNG and SVG, over time in
 //! seconds) and `summary.json`.
 //!

@@ -1,4 +1,4 @@
-//! Runs the four runs of theory §9 (and SNS, theory §13, as an extra row) on any scenario file and writes the same outputs as `paper_experiment`: a table
+//! Runs the four runs of theory §9 (and SNS, theory §13, and the QP cascade, theory §14, as extra rows) on any scenario file and writes the same outputs as `paper_experiment`: a table
 //! (its columns explained under it and in `docs/guide/reading_results.md`), the figures and `summary.json`.
 //!
 //! `cargo run --release --example run_scenario -- SCENARIO.toml [--out DIR] [--size WxH] [--scale S]` (default DIR:

@@ -42,7 +42,9 @@ use crate::math::{first_non_finite, JointVector};
 use crate::stack::{solve_stack, StackError, StackParameters, StackSolution, StackWorkspace};
 use crate::task::TaskValue;
 
+pub mod hqp;
 pub mod sns;
+use hqp::{HqpError, HqpLaw, HqpParameters, HqpSolution};
 use sns::{SnsBounds, SnsError, SnsLaw, SnsSolution};
 
 /// Errors of the control law.
@@ -119,6 +121,13 @@ pub enum LawError {
     /// ([`AvoidanceProjection::Kernel`]) when no bound is active; another projection has no SNS counterpart.
     #[error("saturation in the null space needs the kernel avoidance projection")]
     SnsNeedsKernelProjection,
+    /// The QP cascade failed (its parameters, the box, a level's QP).
+    #[error(transparent)]
+    Hqp(#[from] HqpError),
+    /// The QP cascade takes the avoidance term as its last level `J = I`, which is the kernel projection when no bound
+    /// is active, as SNS does ([`LawError::SnsNeedsKernelProjection`]).
+    #[error("the hierarchical QP needs the kernel avoidance projection")]
+    HqpNeedsKernelProjection,
     /// [`AvoidanceProjection::NormPreserving`] is defined for a stack of one level only.
     #[error("the norm-preserving projection needs a stack of one level, not {levels}")]
     NormPreservingNeedsOneLevel {
@@ -410,6 +419,18 @@ enum HardLimits<const N: usize> {
     Lock(JointLimits<N>, f64),
     /// Saturation in the null space ([`sns`], theory §13).
     Saturate(Box<SnsLaw<N>>),
+    /// The hierarchical QP cascade ([`hqp`], theory §14).
+    Cascade(Box<HqpLaw<N>>),
+}
+
+/// A law that keeps every joint velocity inside the box of hard bounds ([`SnsBounds`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoundedLaw {
+    /// Saturation in the null space ([`ControlWorkspace::saturate_in_null_space`], theory §13).
+    SaturationInNullSpace,
+    /// The hierarchical QP cascade with the default [`HqpParameters`] ([`ControlWorkspace::solve_as_hierarchical_qp`],
+    /// theory §14).
+    HierarchicalQp,
 }
 
 /// The memory of the law ([`ControlWorkspace::memory`]): the transition state, the last velocity returned and the
@@ -476,6 +497,49 @@ impl<const N: usize> ControlWorkspace<N> {
         let (max_rows, max_levels) = self.stack.capacity();
         self.hard_limits =
             HardLimits::Saturate(Box::new(SnsLaw::new(bounds, max_rows, max_levels)));
+    }
+
+    /// The law keeps every joint velocity inside the box of `bounds` as the hierarchical QP cascade
+    /// ([theory §14](crate::theory#s14), [`hqp`]): the stack's levels, then the avoidance term `−κ∇h` (or `0`) as a
+    /// last joint-space level, each a least-squares problem in the box that keeps the levels above at their optimum.
+    /// The transition of D1 is kept inside the box as for SNS ([`sns::pull_into_box`]). Replaces the lock of D26 and
+    /// the saturation in the null space if either was set.
+    ///
+    /// # Errors
+    /// Invalid `parameters` ([`HqpParameters::validate`]).
+    pub fn solve_as_hierarchical_qp(
+        &mut self,
+        bounds: SnsBounds<N>,
+        parameters: &HqpParameters,
+    ) -> Result<(), LawError> {
+        let (max_rows, max_levels) = self.stack.capacity();
+        let law = HqpLaw::new(bounds, parameters, max_rows, max_levels)?;
+        self.hard_limits = HardLimits::Cascade(Box::new(law));
+        Ok(())
+    }
+
+    /// Keeps the law inside the box of `bounds` by `law`, with its default settings.
+    ///
+    /// # Errors
+    /// As [`Self::solve_as_hierarchical_qp`] (not with the default settings).
+    pub fn bound(&mut self, law: BoundedLaw, bounds: SnsBounds<N>) -> Result<(), LawError> {
+        match law {
+            BoundedLaw::SaturationInNullSpace => {
+                self.saturate_in_null_space(bounds);
+                Ok(())
+            }
+            BoundedLaw::HierarchicalQp => {
+                self.solve_as_hierarchical_qp(bounds, &HqpParameters::default())
+            }
+        }
+    }
+
+    /// The cascade's solve of the last step, when the law is the hierarchical QP.
+    pub fn hqp_solution(&self) -> Option<&HqpSolution<N>> {
+        match &self.hard_limits {
+            HardLimits::Cascade(hqp) => Some(hqp.solution()),
+            _ => None,
+        }
     }
 
     /// The SNS solve of the last step, when the law saturates in the null space.
@@ -581,8 +645,13 @@ pub fn control_step<'w, const N: usize>(
     }
     let mut velocity = JointVector::zeros();
     let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
-    if let HardLimits::Saturate(sns) = &workspace.hard_limits {
-        sns.keep_in_box(&law_velocity, &mut velocity);
+    match &workspace.hard_limits {
+        HardLimits::Saturate(sns) => sns.keep_in_box(&law_velocity, &mut velocity),
+        HardLimits::Cascade(hqp) => {
+            let (lower, upper) = hqp.velocity_box();
+            sns::pull_into_box(&law_velocity, &mut velocity, lower, upper);
+        }
+        HardLimits::Ignored | HardLimits::Lock(..) => {}
     }
     // Finite norms (hence finite entries): entries whose squares overflow are no velocity to send, and the
     // controller reads ‖q̇_n‖.
@@ -625,22 +694,21 @@ fn solve_law<const N: usize>(
         ..
     } = workspace;
     let mut locked = [false; N];
-    if let HardLimits::Saturate(sns) = hard_limits {
-        if law.projection != AvoidanceProjection::Kernel {
-            return Err(LawError::SnsNeedsKernelProjection);
+    let previous = output.velocity;
+    let bounded = match hard_limits {
+        HardLimits::Saturate(sns) => {
+            let projection = LawError::SnsNeedsKernelProjection;
+            let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
+            Some(sns.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
         }
-        // The stack without bounds stays the controller's reading of the stack (‖q̇_n‖, P^A_n).
-        stack.lock_joints(&locked);
-        solve_stack(&law.stack, stack, tasks, order)?;
-        let target = cost.is_some().then(|| gradient * -law.avoidance_gain);
-        let velocity = sns.solve(
-            &law.stack,
-            tasks,
-            order,
-            target.as_ref(),
-            q,
-            &output.velocity,
-        )?;
+        HardLimits::Cascade(hqp) => {
+            let projection = LawError::HqpNeedsKernelProjection;
+            let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
+            Some(hqp.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
+        }
+        HardLimits::Ignored | HardLimits::Lock(..) => None,
+    };
+    if let Some(velocity) = bounded {
         return Ok((velocity, gradient, cost_value));
     }
     // Each round that goes on locks one more joint: at most N + 1 solves.
@@ -655,12 +723,33 @@ fn solve_law<const N: usize>(
             HardLimits::Lock(limits, band) => {
                 limits.lock_pressed_joints(q, &law_velocity, *band, &mut locked)
             }
-            HardLimits::Ignored | HardLimits::Saturate(_) => false,
+            HardLimits::Ignored | HardLimits::Saturate(_) | HardLimits::Cascade(_) => false,
         };
         if !pressed {
             return Ok((law_velocity, gradient, cost_value));
         }
     }
+}
+
+/// For a law in the box of hard bounds (SNS or the QP cascade): checks that the avoidance goes through `P^A_n` (else
+/// `projection_error`), solves the stack without bounds, which stays the controller's reading of the stack (`‖q̇_n‖`,
+/// `P^A_n`), and returns the joint-space target `−κ∇h` of the last level (`None` without a cost).
+#[allow(clippy::too_many_arguments)]
+fn bounded_target<const N: usize>(
+    law: &ControlLaw,
+    stack: &mut StackWorkspace<N>,
+    tasks: &[TaskValue<N>],
+    order: &[usize],
+    cost: Option<&dyn Cost<N>>,
+    gradient: &JointVector<N>,
+    projection_error: LawError,
+) -> Result<Option<JointVector<N>>, LawError> {
+    if law.projection != AvoidanceProjection::Kernel {
+        return Err(projection_error);
+    }
+    stack.lock_joints(&[false; N]);
+    solve_stack(&law.stack, stack, tasks, order)?;
+    Ok(cost.is_some().then(|| gradient * -law.avoidance_gain))
 }
 
 #[cfg(test)]

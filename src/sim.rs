@@ -42,7 +42,7 @@ use crate::controller::{
 use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::feature::{FeatureError, Observation};
 use crate::law::sns::SnsBounds;
-use crate::law::{ControlLaw, LawError};
+use crate::law::{BoundedLaw, ControlLaw, LawError};
 use crate::math::{JointVector, KinematicJacobian};
 use crate::measurement::{
     perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
@@ -1335,9 +1335,9 @@ pub struct Drive<'a> {
     /// [D23](crate::theory#d23)): the full method's image points, which take the place of the last task when the
     /// features settle away from the desired image. Until then its error does not count for convergence.
     pub reserve_task: bool,
-    /// Whether the law saturates in the null space ([theory §13](crate::theory#s13)): every velocity inside the box of
-    /// the joint limits, the robot's velocity limits and the period.
-    pub saturate_in_null_space: bool,
+    /// The law that keeps every velocity inside the box of the joint limits, the robot's velocity limits and the period:
+    /// SNS ([theory §13](crate::theory#s13)) or the QP cascade ([theory §14](crate::theory#s14)); `None`: no box.
+    pub bounded_law: Option<BoundedLaw>,
 }
 
 /// Runs the tasks from `start` until convergence, a joint limit, a lost feature or the budget, and keeps every record
@@ -1417,10 +1417,10 @@ pub fn simulate_with<const N: usize>(
             parameters.max_prismatic_velocity_m_s
         }
     });
-    if drive.saturate_in_null_space {
+    if let Some(law) = drive.bounded_law {
         let bounds = SnsBounds::new(scene.limits.clone(), max_velocity, parameters.period)
             .map_err(|e| ControllerError::Law(e.into()))?;
-        controller = controller.with_null_space_saturation(bounds);
+        controller = controller.with_bounded_law(law, bounds)?;
     }
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
     // avoidance cost and guards its removals (D6 (d)).

@@ -152,7 +152,7 @@ class Scenario:
     def joint_count(self) -> int: ...
     def experiment(self) -> Experiment: ...
     def run(self, method: str) -> Run:
-        """method: classical, stack, stack_gradient, full_method or sns."""
+        """method: classical, stack, stack_gradient, full_method, sns or hqp."""
 
 class Experiment:
     def __init__(

@@ -169,14 +169,14 @@ pub fn from_py<T: serde::de::DeserializeOwned>(
 }
 
 /// A method by name: `classical`, `stack`, `stack_gradient`, `full_method` (or its name in outputs,
-/// `stack_controller`), `sns`.
+/// `stack_controller`), `sns`, `hqp`.
 pub fn run_kind(name: &str) -> PyResult<RunKind> {
     if name == "full_method" {
         return Ok(RunKind::FullMethod);
     }
     RunKind::from_name(name).ok_or_else(|| {
         PyValueError::new_err(format!(
-            "unknown method {name:?}: expected classical, stack, stack_gradient, full_method or sns"
+            "unknown method {name:?}: expected classical, stack, stack_gradient, full_method, sns or hqp"
         ))
     })
 }

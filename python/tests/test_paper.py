@@ -53,6 +53,18 @@ def test_sns_holds_joint_2_on_its_limit_where_the_stack_with_gradient_passes_it(
     assert run.normalized_q[-1, 2] < 1e-6
 
 
+def test_hqp_keeps_every_joint_inside_its_limits_with_every_task_stacked(paper):
+    # The hierarchical QP cascade (theory §14): the same pushes and the same box as SNS; no joint ever leaves its
+    # limits and no velocity its bounds, whatever the run's outcome.
+    run = paper.run("hqp")
+    assert run.outcome != "joint_limit", run.outcome_detail
+    assert run.stacked_at_end == ["centroid", "angle", "area", "third_order"]
+    lower, upper = run.limits
+    assert np.all(run.q >= lower) and np.all(run.q <= upper)
+    # The Afma6's three gantry joints are prismatic (0.2 m/s), its wrist revolute (0.7 rad/s).
+    assert np.all(np.abs(run.velocity[:, :3]) <= 0.2) and np.all(np.abs(run.velocity[:, 3:]) <= 0.7)
+
+
 def test_full_method_run_converges_with_the_documented_events_and_its_records_as_arrays(paper):
     run = paper.run("full_method")
     assert run.outcome == "converged"

@@ -124,7 +124,7 @@ use crate::avoidance::{Cost, CostError, JointLimits};
 use crate::bounds::DURATION_S;
 use crate::law::sns::SnsBounds;
 use crate::law::{
-    control_step, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
+    control_step, BoundedLaw, ControlLaw, ControlOutput, ControlWorkspace, LawError, StackChange,
 };
 use crate::linalg::{solve_small_full_row_rank, ColumnSvd, VelocityInverse};
 use crate::math::JointVector;
@@ -361,6 +361,21 @@ impl<const N: usize> StackController<N> {
     pub fn with_null_space_saturation(mut self, bounds: SnsBounds<N>) -> Self {
         self.law_workspace.saturate_in_null_space(bounds);
         self
+    }
+
+    /// The controller whose law keeps every velocity within `bounds` by `law` ([`ControlWorkspace::bound`]): SNS
+    /// ([theory §13](crate::theory#s13)) or the hierarchical QP cascade ([theory §14](crate::theory#s14)), instead of
+    /// locking joints (D26).
+    ///
+    /// # Errors
+    /// None with the default settings ([`ControllerError::Law`] otherwise).
+    pub fn with_bounded_law(
+        mut self,
+        law: BoundedLaw,
+        bounds: SnsBounds<N>,
+    ) -> Result<Self, ControllerError> {
+        self.law_workspace.bound(law, bounds)?;
+        Ok(self)
     }
 
     /// The controller with the last task of the list held in reserve (D23): it is not pushed in sequence; once the

@@ -310,15 +310,17 @@ impl<const N: usize> SnsWorkspace<N> {
 
 /// A level of the solve: a task of the stack, or the joint-space target `J = I` below them.
 #[derive(Clone, Copy)]
-enum Level<'a, const N: usize> {
+pub(super) enum Level<'a, const N: usize> {
     Task(usize, &'a TaskValue<N>),
     JointTarget(&'a JointVector<N>),
 }
 
 /// The terms of a level's velocity `b + s a` for the directions `projector` (`P_{k−1}` or `P̄`) and the base `q̃`.
-struct LevelTerms<const N: usize> {
-    scaled: JointVector<N>,
-    base: JointVector<N>,
+pub(super) struct LevelTerms<const N: usize> {
+    /// `a`, the part scaled by `s`.
+    pub(super) scaled: JointVector<N>,
+    /// `b`.
+    pub(super) base: JointVector<N>,
 }
 
 /// Below this, a diagonal entry of `P̄` means the joint cannot move without disturbing the levels above.
@@ -346,23 +348,7 @@ pub fn solve_sns<'w, const N: usize>(
 ) -> Result<&'w SnsSolution<N>, SnsError> {
     parameters.validate()?;
     check_order(order, tasks.len(), workspace.svds.len())?;
-    for joint in 0..N {
-        let (lo, hi) = (lower[joint], upper[joint]);
-        if !(lo <= hi && lo < f64::INFINITY && hi > f64::NEG_INFINITY) {
-            return Err(SnsError::InvalidBox {
-                joint,
-                lower: lo,
-                upper: hi,
-            });
-        }
-    }
-    if let Some((joint, value)) = joint_target.and_then(first_non_finite) {
-        return Err(SnsError::NonFiniteJointValue {
-            what: "joint-space target",
-            joint,
-            value,
-        });
-    }
+    check_box_and_target(lower, upper, joint_target)?;
     workspace.projector.fill_with_identity();
     workspace.solution.velocity.fill(0.0);
     workspace.solution.levels.clear();
@@ -389,7 +375,34 @@ pub fn solve_sns<'w, const N: usize>(
     Ok(solution)
 }
 
-fn task_of<const N: usize>(level: Level<'_, N>) -> Option<usize> {
+/// Checks that `[lower, upper]` is a box with a finite point in every interval and that the joint-space target, if
+/// given, is finite.
+pub(super) fn check_box_and_target<const N: usize>(
+    lower: &JointVector<N>,
+    upper: &JointVector<N>,
+    joint_target: Option<&JointVector<N>>,
+) -> Result<(), SnsError> {
+    for joint in 0..N {
+        let (lo, hi) = (lower[joint], upper[joint]);
+        if !(lo <= hi && lo < f64::INFINITY && hi > f64::NEG_INFINITY) {
+            return Err(SnsError::InvalidBox {
+                joint,
+                lower: lo,
+                upper: hi,
+            });
+        }
+    }
+    if let Some((joint, value)) = joint_target.and_then(first_non_finite) {
+        return Err(SnsError::NonFiniteJointValue {
+            what: "joint-space target",
+            joint,
+            value,
+        });
+    }
+    Ok(())
+}
+
+pub(super) fn task_of<const N: usize>(level: Level<'_, N>) -> Option<usize> {
     match level {
         Level::Task(index, _) => Some(index),
         Level::JointTarget(_) => None,
@@ -528,13 +541,13 @@ fn solve_level<const N: usize>(
 }
 
 /// The storage a task level is solved in.
-struct Buffers<'a, const N: usize> {
+pub(super) struct Buffers<'a, const N: usize> {
     limited: &'a mut TaskJacobian<N>,
     desired: &'a mut DVector<f64>,
     coupling: &'a mut DVector<f64>,
 }
 
-fn workspace_buffers<'a, const N: usize>(
+pub(super) fn workspace_buffers<'a, const N: usize>(
     limited: &'a mut TaskJacobian<N>,
     desired: &'a mut DVector<f64>,
     coupling: &'a mut DVector<f64>,
@@ -547,7 +560,7 @@ fn workspace_buffers<'a, const N: usize>(
 }
 
 /// `a = (J P)⁺ ẋ` with `ẋ = −λ e`, and `b = q̃ − (J P)⁺ J q̃`, for a task level.
-fn task_terms<const N: usize>(
+pub(super) fn task_terms<const N: usize>(
     parameters: &StackParameters,
     buffers: Buffers<'_, N>,
     svd: &mut ColumnSvd<N>,
@@ -580,7 +593,7 @@ fn task_terms<const N: usize>(
 
 /// `a = P q̇*` and `b = q̃ − P q̃` for the joint-space target (`J = I`, whose limited Jacobian `P` is its own
 /// pseudo-inverse).
-fn joint_target_terms<const N: usize>(
+pub(super) fn joint_target_terms<const N: usize>(
     projector: &JointMatrix<N>,
     target: &JointVector<N>,
     base: &JointVector<N>,
@@ -643,7 +656,7 @@ fn task_scaling<const N: usize>(
 }
 
 /// `bound` moved outwards (`side` −1 for a lower bound, +1 for an upper one) by the box tolerance; infinite bounds stay.
-fn widened(bound: f64, side: f64) -> f64 {
+pub(super) fn widened(bound: f64, side: f64) -> f64 {
     if bound.is_finite() {
         bound + side * BOX_TOLERANCE * (1.0 + bound.abs())
     } else {

@@ -158,7 +158,8 @@ pub fn write_scenario_experiment_with(
     crate::scenario::with_joint_count(scenario.joint_count()?, write)?
 }
 
-/// Runs the four runs of [theory §9](crate::theory#s9), then SNS as an extra row ([theory §13](crate::theory#s13)), on
+/// Runs the four runs of [theory §9](crate::theory#s9), then SNS and the QP cascade as extra rows
+/// ([theory §13](crate::theory#s13), [§14](crate::theory#s14)), on
 /// `scenario` (a robot with `N` joints), writes their figures (feature `plot`) and
 /// `summary.json` into `out_dir`, and returns the summary.
 ///

@@ -224,6 +224,10 @@ pub enum RunKind {
     /// the joint-limit cost as the last level, every joint velocity kept inside the box of the position and velocity
     /// limits; no removal, no braking, no lock. Not one of the paper's methods.
     Sns,
+    /// The hierarchical QP cascade ([theory §14](crate::theory#s14)): the same pushes, the tasks then the joint-limit
+    /// cost as lexicographic least-squares levels in the same box as SNS's; no removal, no braking, no lock. Not one
+    /// of the paper's methods.
+    Hqp,
 }
 
 impl RunKind {
@@ -235,17 +239,18 @@ impl RunKind {
         Self::FullMethod,
     ];
 
-    /// Every method a scenario or a study can run: the paper's four, then SNS.
-    pub const SELECTABLE: [RunKind; 5] = [
+    /// Every method a scenario or a study can run: the paper's four, then SNS and the QP cascade.
+    pub const SELECTABLE: [RunKind; 6] = [
         Self::Classical,
         Self::Stack,
         Self::StackGradient,
         Self::FullMethod,
         Self::Sns,
+        Self::Hqp,
     ];
 
     /// The method's name in outputs: `classical`, `stack`, `stack_gradient`, `stack_controller` (the full method),
-    /// `sns`.
+    /// `sns`, `hqp`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Classical => "classical",
@@ -253,6 +258,7 @@ impl RunKind {
             Self::StackGradient => "stack_gradient",
             Self::FullMethod => "stack_controller",
             Self::Sns => "sns",
+            Self::Hqp => "hqp",
         }
     }
 

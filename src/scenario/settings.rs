@@ -8,7 +8,7 @@ use crate::camera::ImagePoint;
 use crate::controller::{ControllerParameters, HardLimitRule, RemovalCriterion};
 use crate::depth::DepthSource;
 use crate::feature::Observation;
-use crate::law::ControlLaw;
+use crate::law::{BoundedLaw, ControlLaw};
 use crate::linalg::VelocityInverse;
 use crate::measurement::{MeasurementModel, MeasurementParameters};
 use crate::servo::AdaptiveGain;
@@ -347,7 +347,7 @@ impl Settings {
         let sensing = sensing.map(|s| s.with_true_tasks(&true_tasks));
         let avoid = matches!(
             kind,
-            RunKind::StackGradient | RunKind::FullMethod | RunKind::Sns
+            RunKind::StackGradient | RunKind::FullMethod | RunKind::Sns | RunKind::Hqp
         );
         let kappa = if avoid { self.avoidance.gain } else { 0.0 };
         let adaptive_gain = self.adaptive_gain()?;
@@ -376,7 +376,12 @@ impl Settings {
         let saturate_in_null_space = kind == RunKind::Sns
             || (full_method
                 && self.controller.hard_limit_rule == HardLimitRule::SaturateInNullSpace);
-        let brake_and_lock = full_method && !saturate_in_null_space;
+        let bounded_law = if saturate_in_null_space {
+            Some(BoundedLaw::SaturationInNullSpace)
+        } else {
+            (kind == RunKind::Hqp).then_some(BoundedLaw::HierarchicalQp)
+        };
+        let brake_and_lock = full_method && bounded_law.is_none();
         let controller = ControllerParameters {
             allow_removal: full_method,
             braking_rate: if brake_and_lock {
@@ -401,7 +406,7 @@ impl Settings {
             sensing: sensing.as_ref(),
             adaptive_gain,
             reserve_task: full_method,
-            saturate_in_null_space,
+            bounded_law,
         };
         Ok(simulate_with(
             &scene,

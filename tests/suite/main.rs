@@ -28,6 +28,7 @@ mod foundation_errors;
 mod fuzz;
 mod hostile_input;
 mod hostile_readers;
+mod hqp;
 mod measurement_no_alloc;
 mod noisy_camera_loop;
 mod obstacle_scenario;

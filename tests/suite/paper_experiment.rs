@@ -290,6 +290,23 @@ fn the_reference_run_converges_at_its_goal_pose() {
     assert_eq!(strict_run.iterations(), run.iterations());
 }
 
+/// The QP cascade, the second extra row (theory §14): the same pushes as SNS, but the fourth task's level minimises its
+/// residual in the box instead of being scaled down, and the run converges with every task stacked, inside the limits.
+#[test]
+fn hqp_converges_within_the_limits_with_every_task_stacked() {
+    let run = run(RunKind::Hqp);
+    assert!(
+        matches!(run.outcome, Outcome::Converged),
+        "{:?}",
+        run.outcome
+    );
+    assert_eq!(
+        run.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    assert!(run.min_normalized_margin() >= 0.0);
+}
+
 /// SNS, the extra row of the experiment (not from the paper; theory §13): the same pushes as the stack with gradient,
 /// but joint 2 is held on its lower limit instead of passing it, and with no removal the fourth task stays unmet
 /// until the budget ends.
