@@ -72,6 +72,12 @@ pub enum HqpError {
     /// The task stack is invalid (unknown or repeated task, non-finite task data, capacity) or its algebra failed.
     #[error(transparent)]
     Stack(#[from] StackError),
+    /// The filtered inverse of D30 has no QP form (its damping depends on each singular value): the cascade takes the
+    /// truncated or the damped inverse.
+    #[error(
+        "the QP cascade takes the truncated or the damped inverse, not the filtered one (D30)"
+    )]
+    FilteredInverse,
     /// Clarabel did not solve the QP of a level (status other than solved or almost solved), or gave a non-finite
     /// point.
     #[error("the QP of level {level} was not solved: {status} after {iterations} iterations")]
@@ -274,6 +280,7 @@ pub fn solve_hqp<'w, const N: usize>(
     let damping = match parameters.velocity_inverse {
         VelocityInverse::Truncated => 0.0,
         VelocityInverse::Damped { damping } => damping,
+        VelocityInverse::Filtered { .. } => return Err(HqpError::FilteredInverse),
     };
     let task_levels = order.iter().enumerate().map(|(level, &index)| {
         let task = checked_task(tasks, level, index, capacity)?;

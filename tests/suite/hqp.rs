@@ -13,6 +13,7 @@ use servostack::law::sns::{SnsBounds, SnsError};
 use servostack::law::{
     control_step, AvoidanceProjection, ControlLaw, ControlWorkspace, LawError, StackChange,
 };
+use servostack::linalg::VelocityInverse;
 use servostack::math::JointVector;
 use servostack::scenario::{RunKind, Scenario};
 use servostack::sim::Outcome;
@@ -323,6 +324,21 @@ fn bad_parameters_and_inputs_are_clear_errors() {
         matches!(err, HqpError::Bounds(SnsError::InvalidBox { joint: 1, .. })),
         "{err}"
     );
+    let filtered = StackParameters {
+        velocity_inverse: VelocityInverse::Filtered { floor: 3e-4 },
+        ..StackParameters::default()
+    };
+    let err = solve_hqp(
+        &filtered,
+        &mut workspace,
+        &tasks,
+        &[0],
+        None,
+        &-upper.abs(),
+        &upper.abs(),
+    )
+    .unwrap_err();
+    assert_eq!(err, HqpError::FilteredInverse);
     let target = Vector3::new(0.0, f64::NAN, 0.0);
     let err = solve_hqp(
         &parameters,
