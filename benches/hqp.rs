@@ -100,7 +100,9 @@ fn hqp_step(c: &mut Criterion) {
                 .levels()
                 .iter()
                 .filter_map(|l| match l.solve {
-                    LevelSolve::Qp { iterations } => Some(iterations),
+                    LevelSolve::Qp { iterations } | LevelSolve::Kept { iterations } => {
+                        Some(iterations)
+                    }
                     LevelSolve::ClosedForm => None,
                 })
                 .collect();

@@ -78,8 +78,8 @@ pub enum HqpError {
         "the QP cascade takes the truncated or the damped inverse, not the filtered one (D30)"
     )]
     FilteredInverse,
-    /// Clarabel did not solve the QP of a level (status other than solved or almost solved), or gave a non-finite
-    /// point.
+    /// Clarabel could not set up the QP of a level, or its solution was not finite. (A QP it stops short of solving
+    /// leaves the level at the velocity of the levels above: [`LevelSolve::Kept`].)
     #[error("the QP of level {level} was not solved: {status} after {iterations} iterations")]
     Solver {
         /// The level (0-based; the number of tasks for the joint-space target).
@@ -155,6 +155,13 @@ pub enum LevelSolve {
     ClosedForm,
     /// By the QP.
     Qp {
+        /// Clarabel's iterations.
+        iterations: u32,
+    },
+    /// The QP was not solved (Clarabel stopped short of its reduced tolerances: insufficient progress, its iteration
+    /// budget): the level keeps `q̇*_{k−1}`, the velocity of the levels above, which lies in the box and keeps their
+    /// optima. A control loop goes on with a velocity that serves every level above; this level is not improved.
+    Kept {
         /// Clarabel's iterations.
         iterations: u32,
     },
@@ -487,9 +494,18 @@ fn solve_level_qp<const N: usize>(
         solution.status,
         SolverStatus::Solved | SolverStatus::AlmostSolved
     );
+    if !solved {
+        return Ok((
+            *above,
+            LevelSolve::Kept {
+                iterations: solution.iterations,
+            },
+            [false; N],
+        ));
+    }
     let z = DVector::from_column_slice(&solution.x);
     let step = &basis * z;
-    if !solved || step.iter().any(|v| !v.is_finite()) {
+    if step.iter().any(|v| !v.is_finite()) {
         return Err(HqpError::Solver {
             level,
             status: format!("{:?}", solution.status),

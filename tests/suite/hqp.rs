@@ -283,6 +283,52 @@ fn the_cascade_law_is_continuous_at_a_stack_change_and_stays_in_its_box() {
     assert!(levels[1].residual > 1e-3, "{levels:?}");
 }
 
+/// A QP the solver stops short of (here its iteration budget of one) leaves the level at the velocity of the levels
+/// above: inside the box, and the run goes on. With the default budget the same level is solved and meets its bound.
+#[test]
+fn a_qp_not_solved_keeps_the_levels_above() {
+    let task = TaskValue::from_parts(
+        "x",
+        DVector::from_vec(vec![-0.45]),
+        TaskJacobian::<3>::from_row_slice(&[1.0, 0.0, 0.0]),
+        1.0,
+    )
+    .unwrap();
+    let tasks = [task];
+    let (lower, upper) = (Vector3::repeat(-0.1), Vector3::repeat(0.1));
+    let solve = |parameters: HqpParameters| {
+        let mut workspace = HqpWorkspace::with_capacity(1, 1, &parameters).unwrap();
+        solve_hqp(
+            &StackParameters::default(),
+            &mut workspace,
+            &tasks,
+            &[0],
+            None,
+            &lower,
+            &upper,
+        )
+        .unwrap()
+        .clone()
+    };
+    let short = solve(HqpParameters {
+        max_iterations: 1,
+        ..HqpParameters::default()
+    });
+    assert!(
+        matches!(short.levels()[0].solve, LevelSolve::Kept { .. }),
+        "{:?}",
+        short.levels()
+    );
+    assert_eq!(*short.velocity(), Vector3::zeros());
+    let solved = solve(HqpParameters::default());
+    assert!(matches!(solved.levels()[0].solve, LevelSolve::Qp { .. }));
+    assert!(
+        (solved.velocity()[0] - 0.1).abs() < 1e-8,
+        "{}",
+        solved.velocity()
+    );
+}
+
 #[test]
 fn bad_parameters_and_inputs_are_clear_errors() {
     for tolerance in [0.0, 1e-15, 1e-2, f64::NAN, f64::INFINITY] {
