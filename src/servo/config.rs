@@ -5,7 +5,7 @@ use super::step::check_pixel;
 use super::{AdaptiveGain, ServoError, ServoOutput, VisualServo, MAX_TASKS};
 use crate::avoidance::JointLimits;
 use crate::camera::{CalibratedCamera, EyeInHand, ImagePoint};
-use crate::controller::{ControllerParameters, StackController};
+use crate::controller::{ControllerParameters, HardLimitRule, StackController};
 use crate::depth::DepthSource;
 use crate::feature::{InteractionSource, Observation};
 use crate::law::ControlLaw;
@@ -143,7 +143,7 @@ impl<const N: usize> VisualServo<N> {
     ///
     /// # Errors
     /// [`ServoError::InvalidParameter`] (velocity limits, convergence threshold, desired depth),
-    /// [`ServoError::UnsupportedDepthSource`], and the models' errors (a desired corner that does not undistort, a
+    /// [`ServoError::UnsupportedDepthSource`], [`ServoError::UnsupportedHardLimitRule`], and the models' errors (a desired corner that does not undistort, a
     /// feature undefined on the desired image, invalid gains, `μ`, `κ`, `ρ`, controller or depth parameters).
     pub fn new(config: ServoConfig<N>) -> Result<Self, ServoError> {
         let invalid = |name, value, expected| ServoError::InvalidParameter {
@@ -164,6 +164,9 @@ impl<const N: usize> VisualServo<N> {
         }
         if config.depth == DepthSource::PreviousPlane {
             return Err(ServoError::UnsupportedDepthSource);
+        }
+        if config.controller.hard_limit_rule != HardLimitRule::BrakeAndLock {
+            return Err(ServoError::UnsupportedHardLimitRule);
         }
         config.depth.validate()?;
         let (desired_points, desired_depth) = desired_points(&config)?;

@@ -5,7 +5,7 @@ use crate::counting_allocator::allocations_during;
 use nalgebra::{Isometry3, Point2};
 use servostack::avoidance::JointLimits;
 use servostack::camera::{BrownConrady, CalibratedCamera, CameraIntrinsics};
-use servostack::controller::{ControllerParameters, EventKind};
+use servostack::controller::{ControllerParameters, EventKind, HardLimitRule};
 use servostack::depth::DepthSource;
 use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
@@ -1004,6 +1004,12 @@ fn invalid_configurations_are_named_errors() {
     assert!(matches!(
         VisualServo::new(config),
         Err(ServoError::UnsupportedDepthSource)
+    ));
+    let mut config = base.clone();
+    config.controller.hard_limit_rule = HardLimitRule::SaturateInNullSpace;
+    assert!(matches!(
+        VisualServo::new(config),
+        Err(ServoError::UnsupportedHardLimitRule)
     ));
     let mut config = base.clone();
     config.depth = DepthSource::Constant { depth_m: -0.5 };
