@@ -44,8 +44,8 @@ use crate::task::TaskValue;
 
 pub mod hqp;
 pub mod sns;
-use hqp::{HqpError, HqpLaw, HqpParameters, HqpSolution};
-use sns::{SnsBounds, SnsError, SnsLaw, SnsSolution};
+use hqp::{solve_hqp, HqpError, HqpLaw, HqpParameters, HqpSolution, HqpWorkspace};
+use sns::{solve_sns, SnsBounds, SnsError, SnsLaw, SnsSolution, SnsWorkspace};
 
 /// Errors of the control law.
 #[non_exhaustive]
@@ -495,8 +495,10 @@ impl<const N: usize> ControlWorkspace<N> {
     /// Replaces the lock of D26 if it was set.
     pub fn saturate_in_null_space(&mut self, bounds: SnsBounds<N>) {
         let (max_rows, max_levels) = self.stack.capacity();
-        self.hard_limits =
-            HardLimits::Saturate(Box::new(SnsLaw::new(bounds, max_rows, max_levels)));
+        self.hard_limits = HardLimits::Saturate(Box::new(SnsLaw::new(
+            bounds,
+            SnsWorkspace::with_capacity(max_rows, max_levels),
+        )));
     }
 
     /// The law keeps every joint velocity inside the box of `bounds` as the hierarchical QP cascade
@@ -513,7 +515,10 @@ impl<const N: usize> ControlWorkspace<N> {
         parameters: &HqpParameters,
     ) -> Result<(), LawError> {
         let (max_rows, max_levels) = self.stack.capacity();
-        let law = HqpLaw::new(bounds, parameters, max_rows, max_levels)?;
+        let law = HqpLaw::new(
+            bounds,
+            HqpWorkspace::with_capacity(max_rows, max_levels, parameters)?,
+        );
         self.hard_limits = HardLimits::Cascade(Box::new(law));
         Ok(())
     }
@@ -537,7 +542,7 @@ impl<const N: usize> ControlWorkspace<N> {
     /// The cascade's solve of the last step, when the law is the hierarchical QP.
     pub fn hqp_solution(&self) -> Option<&HqpSolution<N>> {
         match &self.hard_limits {
-            HardLimits::Cascade(hqp) => Some(hqp.solution()),
+            HardLimits::Cascade(hqp) => Some(hqp.workspace().solution()),
             _ => None,
         }
     }
@@ -545,7 +550,7 @@ impl<const N: usize> ControlWorkspace<N> {
     /// The SNS solve of the last step, when the law saturates in the null space.
     pub fn sns_solution(&self) -> Option<&SnsSolution<N>> {
         match &self.hard_limits {
-            HardLimits::Saturate(sns) => Some(sns.solution()),
+            HardLimits::Saturate(sns) => Some(sns.workspace().solution()),
             _ => None,
         }
     }
@@ -647,10 +652,7 @@ pub fn control_step<'w, const N: usize>(
     let decay = transition.blend(law.transition_gain, time, &law_velocity, &mut velocity);
     match &workspace.hard_limits {
         HardLimits::Saturate(sns) => sns.keep_in_box(&law_velocity, &mut velocity),
-        HardLimits::Cascade(hqp) => {
-            let (lower, upper) = hqp.velocity_box();
-            sns::pull_into_box(&law_velocity, &mut velocity, lower, upper);
-        }
+        HardLimits::Cascade(hqp) => hqp.keep_in_box(&law_velocity, &mut velocity),
         HardLimits::Ignored | HardLimits::Lock(..) => {}
     }
     // Finite norms (hence finite entries): entries whose squares overflow are no velocity to send, and the
@@ -699,12 +701,34 @@ fn solve_law<const N: usize>(
         HardLimits::Saturate(sns) => {
             let projection = LawError::SnsNeedsKernelProjection;
             let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
-            Some(sns.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
+            Some(sns.solve_in_box(q, &previous, |workspace, lower, upper| {
+                solve_sns(
+                    &law.stack,
+                    workspace,
+                    tasks,
+                    order,
+                    target.as_ref(),
+                    lower,
+                    upper,
+                )
+                .map(|solution| *solution.velocity())
+            })?)
         }
         HardLimits::Cascade(hqp) => {
             let projection = LawError::HqpNeedsKernelProjection;
             let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
-            Some(hqp.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
+            Some(hqp.solve_in_box(q, &previous, |workspace, lower, upper| {
+                solve_hqp(
+                    &law.stack,
+                    workspace,
+                    tasks,
+                    order,
+                    target.as_ref(),
+                    lower,
+                    upper,
+                )
+                .map(|solution| *solution.velocity())
+            })?)
         }
         HardLimits::Ignored | HardLimits::Lock(..) => None,
     };

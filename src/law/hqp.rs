@@ -3,7 +3,8 @@
 //! generalizing the task-priority framework to inequality task*, IEEE T-RO 27(4), 2011; the form of OpenSoT, TSID and
 //! the Stack of Tasks).
 //!
-//! The hard constraints are the box `[q̇^lo, q̇^hi]` of [`SnsBounds::velocity_box`], the same as SNS's: joint positions
+//! The hard constraints are the box `[q̇^lo, q̇^hi]` of
+//! [`SnsBounds::velocity_box`](super::sns::SnsBounds::velocity_box), the same as SNS's: joint positions
 //! `q_min ≤ q + q̇ Δt ≤ q_max` and velocity limits (and acceleration limits when given). Below them, level `k` (the
 //! tasks in stack order, then the joint-space target `J = I` with `ẋ = q̇*`, the law's avoidance term `−κ∇h`, or
 //! `q̇* = 0` without one) solves
@@ -41,7 +42,7 @@
 
 use super::sns::{
     check_box_and_target, joint_target_terms, task_of, task_terms, widened, workspace_buffers,
-    Level, SnsBounds, SnsError,
+    BoxedLaw, Level, SnsError,
 };
 use crate::linalg::{symmetrize, ColumnSvd, RankPolicy, VelocityInverse};
 use crate::math::{JointMatrix, JointVector};
@@ -556,63 +557,5 @@ fn dense(matrix: &DMatrix<f64>) -> CscMatrix<f64> {
     CscMatrix::new(m, n, colptr, rowval, matrix.as_slice().to_vec())
 }
 
-/// The cascade as the control law's solver ([`crate::law::ControlWorkspace::solve_as_hierarchical_qp`]): the bounds,
-/// the parameters, the workspace and the box of the last step.
-#[derive(Debug, Clone)]
-pub(crate) struct HqpLaw<const N: usize> {
-    bounds: SnsBounds<N>,
-    workspace: HqpWorkspace<N>,
-    lower: JointVector<N>,
-    upper: JointVector<N>,
-}
-
-impl<const N: usize> HqpLaw<N> {
-    pub(crate) fn new(
-        bounds: SnsBounds<N>,
-        parameters: &HqpParameters,
-        max_rows: usize,
-        max_levels: usize,
-    ) -> Result<Self, HqpError> {
-        Ok(Self {
-            bounds,
-            workspace: HqpWorkspace::with_capacity(max_rows, max_levels, parameters)?,
-            lower: JointVector::zeros(),
-            upper: JointVector::zeros(),
-        })
-    }
-
-    /// The law's velocity: the box at `q` after the velocity `previous`, then [`solve_hqp`] with the target.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn solve(
-        &mut self,
-        parameters: &StackParameters,
-        tasks: &[TaskValue<N>],
-        order: &[usize],
-        joint_target: Option<&JointVector<N>>,
-        q: &JointVector<N>,
-        previous: &JointVector<N>,
-    ) -> Result<JointVector<N>, HqpError> {
-        self.bounds
-            .velocity_box(q, previous, &mut self.lower, &mut self.upper)?;
-        let solution = solve_hqp(
-            parameters,
-            &mut self.workspace,
-            tasks,
-            order,
-            joint_target,
-            &self.lower,
-            &self.upper,
-        )?;
-        Ok(*solution.velocity())
-    }
-
-    /// The last solve's result.
-    pub(crate) fn solution(&self) -> &HqpSolution<N> {
-        self.workspace.solution()
-    }
-
-    /// The box of the last step.
-    pub(crate) fn velocity_box(&self) -> (&JointVector<N>, &JointVector<N>) {
-        (&self.lower, &self.upper)
-    }
-}
+/// The cascade as the control law's solver ([`crate::law::ControlWorkspace::solve_as_hierarchical_qp`]).
+pub(crate) type HqpLaw<const N: usize> = BoxedLaw<N, HqpWorkspace<N>>;

@@ -689,54 +689,45 @@ pub fn pull_into_box<const N: usize>(
     }
 }
 
-/// SNS as the control law's solver ([`crate::law::ControlWorkspace::saturate_in_null_space`]): the bounds, the
-/// workspace and the box of the last step.
+/// A control law solved inside the box of [`SnsBounds`] ([`crate::law::ControlWorkspace::bound`]): each step, the box
+/// at `q` after the velocity sent, then the solver of the workspace `W` within it. SNS ([`SnsLaw`]) and the QP cascade
+/// ([`crate::law::hqp`]) are the two.
 #[derive(Debug, Clone)]
-pub(crate) struct SnsLaw<const N: usize> {
+pub(crate) struct BoxedLaw<const N: usize, W> {
     bounds: SnsBounds<N>,
-    workspace: SnsWorkspace<N>,
+    workspace: W,
     lower: JointVector<N>,
     upper: JointVector<N>,
 }
 
-impl<const N: usize> SnsLaw<N> {
-    pub(crate) fn new(bounds: SnsBounds<N>, max_rows: usize, max_levels: usize) -> Self {
+/// SNS as the control law's solver ([`crate::law::ControlWorkspace::saturate_in_null_space`]).
+pub(crate) type SnsLaw<const N: usize> = BoxedLaw<N, SnsWorkspace<N>>;
+
+impl<const N: usize, W> BoxedLaw<N, W> {
+    pub(crate) fn new(bounds: SnsBounds<N>, workspace: W) -> Self {
         Self {
             bounds,
-            workspace: SnsWorkspace::with_capacity(max_rows, max_levels),
+            workspace,
             lower: JointVector::zeros(),
             upper: JointVector::zeros(),
         }
     }
 
-    /// The law's velocity: the box at `q` after the velocity `previous`, then [`solve_sns`] with the target.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn solve(
+    /// The law's velocity: the box at `q` after the velocity `previous`, then `solve` on the workspace within it.
+    pub(crate) fn solve_in_box<E: From<SnsError>>(
         &mut self,
-        parameters: &StackParameters,
-        tasks: &[TaskValue<N>],
-        order: &[usize],
-        joint_target: Option<&JointVector<N>>,
         q: &JointVector<N>,
         previous: &JointVector<N>,
-    ) -> Result<JointVector<N>, SnsError> {
+        solve: impl FnOnce(&mut W, &JointVector<N>, &JointVector<N>) -> Result<JointVector<N>, E>,
+    ) -> Result<JointVector<N>, E> {
         self.bounds
             .velocity_box(q, previous, &mut self.lower, &mut self.upper)?;
-        let solution = solve_sns(
-            parameters,
-            &mut self.workspace,
-            tasks,
-            order,
-            joint_target,
-            &self.lower,
-            &self.upper,
-        )?;
-        Ok(*solution.velocity())
+        solve(&mut self.workspace, &self.lower, &self.upper)
     }
 
-    /// The last solve's result.
-    pub(crate) fn solution(&self) -> &SnsSolution<N> {
-        self.workspace.solution()
+    /// The workspace of the last solve.
+    pub(crate) fn workspace(&self) -> &W {
+        &self.workspace
     }
 
     /// [`pull_into_box`] with the last step's box.
