@@ -44,8 +44,8 @@ use crate::task::TaskValue;
 
 pub mod hqp;
 pub mod sns;
-use hqp::{solve_hqp, HqpError, HqpLaw, HqpParameters, HqpSolution, HqpWorkspace};
-use sns::{solve_sns, SnsBounds, SnsError, SnsLaw, SnsSolution, SnsWorkspace};
+use hqp::{HqpError, HqpLaw, HqpParameters, HqpSolution, HqpWorkspace};
+use sns::{SnsBounds, SnsError, SnsLaw, SnsSolution, SnsWorkspace};
 
 /// Errors of the control law.
 #[non_exhaustive]
@@ -701,34 +701,12 @@ fn solve_law<const N: usize>(
         HardLimits::Saturate(sns) => {
             let projection = LawError::SnsNeedsKernelProjection;
             let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
-            Some(sns.solve_in_box(q, &previous, |workspace, lower, upper| {
-                solve_sns(
-                    &law.stack,
-                    workspace,
-                    tasks,
-                    order,
-                    target.as_ref(),
-                    lower,
-                    upper,
-                )
-                .map(|solution| *solution.velocity())
-            })?)
+            Some(sns.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
         }
         HardLimits::Cascade(hqp) => {
             let projection = LawError::HqpNeedsKernelProjection;
             let target = bounded_target(law, stack, tasks, order, cost, &gradient, projection)?;
-            Some(hqp.solve_in_box(q, &previous, |workspace, lower, upper| {
-                solve_hqp(
-                    &law.stack,
-                    workspace,
-                    tasks,
-                    order,
-                    target.as_ref(),
-                    lower,
-                    upper,
-                )
-                .map(|solution| *solution.velocity())
-            })?)
+            Some(hqp.solve(&law.stack, tasks, order, target.as_ref(), q, &previous)?)
         }
         HardLimits::Ignored | HardLimits::Lock(..) => None,
     };

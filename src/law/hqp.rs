@@ -42,7 +42,7 @@
 
 use super::sns::{
     check_box_and_target, joint_target_terms, task_of, task_terms, widened, workspace_buffers,
-    BoxedLaw, Level, SnsError,
+    BoxSolver, BoxedLaw, Level, SnsError,
 };
 use crate::linalg::{symmetrize, ColumnSvd, RankPolicy, VelocityInverse};
 use crate::math::{JointMatrix, JointVector};
@@ -559,3 +559,20 @@ fn dense(matrix: &DMatrix<f64>) -> CscMatrix<f64> {
 
 /// The cascade as the control law's solver ([`crate::law::ControlWorkspace::solve_as_hierarchical_qp`]).
 pub(crate) type HqpLaw<const N: usize> = BoxedLaw<N, HqpWorkspace<N>>;
+
+impl<const N: usize> BoxSolver<N> for HqpWorkspace<N> {
+    type Error = HqpError;
+
+    fn solve_in_box(
+        &mut self,
+        parameters: &StackParameters,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        joint_target: Option<&JointVector<N>>,
+        lower: &JointVector<N>,
+        upper: &JointVector<N>,
+    ) -> Result<JointVector<N>, HqpError> {
+        solve_hqp(parameters, self, tasks, order, joint_target, lower, upper)
+            .map(|solution| *solution.velocity())
+    }
+}

@@ -703,6 +703,40 @@ pub(crate) struct BoxedLaw<const N: usize, W> {
 /// SNS as the control law's solver ([`crate::law::ControlWorkspace::saturate_in_null_space`]).
 pub(crate) type SnsLaw<const N: usize> = BoxedLaw<N, SnsWorkspace<N>>;
 
+/// A workspace that solves the stack within a velocity box: [`solve_sns`]'s, and the QP cascade's.
+pub(crate) trait BoxSolver<const N: usize> {
+    /// Its error, which a box that is not an interval becomes.
+    type Error: From<SnsError>;
+
+    /// The velocity of the stack `order` of `tasks` in `[lower, upper]`, with the joint-space target last.
+    fn solve_in_box(
+        &mut self,
+        parameters: &StackParameters,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        joint_target: Option<&JointVector<N>>,
+        lower: &JointVector<N>,
+        upper: &JointVector<N>,
+    ) -> Result<JointVector<N>, Self::Error>;
+}
+
+impl<const N: usize> BoxSolver<N> for SnsWorkspace<N> {
+    type Error = SnsError;
+
+    fn solve_in_box(
+        &mut self,
+        parameters: &StackParameters,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        joint_target: Option<&JointVector<N>>,
+        lower: &JointVector<N>,
+        upper: &JointVector<N>,
+    ) -> Result<JointVector<N>, SnsError> {
+        solve_sns(parameters, self, tasks, order, joint_target, lower, upper)
+            .map(|solution| *solution.velocity())
+    }
+}
+
 impl<const N: usize, W> BoxedLaw<N, W> {
     pub(crate) fn new(bounds: SnsBounds<N>, workspace: W) -> Self {
         Self {
@@ -713,16 +747,30 @@ impl<const N: usize, W> BoxedLaw<N, W> {
         }
     }
 
-    /// The law's velocity: the box at `q` after the velocity `previous`, then `solve` on the workspace within it.
-    pub(crate) fn solve_in_box<E: From<SnsError>>(
+    /// The law's velocity: the box at `q` after the velocity `previous`, then the workspace's solver within it, with
+    /// the joint-space target of the last level.
+    pub(crate) fn solve(
         &mut self,
+        parameters: &StackParameters,
+        tasks: &[TaskValue<N>],
+        order: &[usize],
+        joint_target: Option<&JointVector<N>>,
         q: &JointVector<N>,
         previous: &JointVector<N>,
-        solve: impl FnOnce(&mut W, &JointVector<N>, &JointVector<N>) -> Result<JointVector<N>, E>,
-    ) -> Result<JointVector<N>, E> {
+    ) -> Result<JointVector<N>, W::Error>
+    where
+        W: BoxSolver<N>,
+    {
         self.bounds
             .velocity_box(q, previous, &mut self.lower, &mut self.upper)?;
-        solve(&mut self.workspace, &self.lower, &self.upper)
+        self.workspace.solve_in_box(
+            parameters,
+            tasks,
+            order,
+            joint_target,
+            &self.lower,
+            &self.upper,
+        )
     }
 
     /// The workspace of the last solve.
