@@ -117,6 +117,8 @@ class VisualServo:
         convergence_error: float = 1e-4,
         controller: Optional[Mapping[str, Any]] = None,
         protect_centroid: bool = True,
+        method: str = "full_method",
+        control_period: Optional[float] = None,
     ) -> None: ...
     @staticmethod
     def from_scenario(scenario: Scenario) -> VisualServo: ...

@@ -16,7 +16,7 @@ use servostack::math::JointVector;
 use servostack::robot::JointKind;
 use servostack::scenario::{with_joint_count, Experiment, ForJointCount, MAX_JOINTS};
 use servostack::servo::{
-    Corners, DesiredImage, ServoConfig, ServoError as RustServoError, TaskChoice,
+    Corners, DesiredImage, ServoConfig, ServoError as RustServoError, ServoMethod, TaskChoice,
     VisualServo as RustServo,
 };
 use servostack::target::RectangleTarget;
@@ -124,6 +124,8 @@ struct Parts {
     max_joint_velocity: Option<Vec<f64>>,
     convergence_error: f64,
     protect_centroid: bool,
+    method: ServoMethod,
+    control_period_s: Option<f64>,
 }
 
 impl Parts {
@@ -141,6 +143,8 @@ impl Parts {
         config.depth = self.depth;
         config.convergence_error = self.convergence_error;
         config.protect_centroid = self.protect_centroid;
+        config.method = self.method;
+        config.control_period_s = self.control_period_s;
         if let Some(limits) = self.max_joint_velocity {
             if limits.len() != N {
                 return Err(PyValueError::new_err(format!(
@@ -242,6 +246,9 @@ fn scenario_config<const N: usize>(
         ),
         convergence_error: settings.simulation.convergence_error,
         protect_centroid: true,
+        method: ServoMethod::FullMethod,
+        // The scenario's period sizes the box of its `hard_limit_rule = "saturate_in_null_space"`, as in its runs.
+        control_period_s: Some(settings.simulation.period),
     };
     let mut config = parts.config(scene.chain().clone())?;
     config.interaction = t.interaction.into();
@@ -304,13 +311,15 @@ impl VisualServo {
     /// at `desired_depth` (m). `tasks` is `"sequence"` (the paper's four tasks, gains `gains`, stacked by the
     /// controller) or `"classical"` (one task of six features, gain `classical_gain`). `depth`: `"desired"`,
     /// `"target_pose"`, a constant (m) or a dict. `controller`: the `[controller]` keys of a scenario file, as a
-    /// dict. Every other parameter as `ServoConfig`'s field of the same name.
+    /// dict. `method`: `"full_method"` (the paper's), `"sns"` (saturation in the null space) or `"hqp"` (the
+    /// hierarchical QP cascade), the last two with `control_period` (s), the loop's period that sizes their box.
+    /// Every other parameter as `ServoConfig`'s field of the same name.
     #[new]
     #[pyo3(signature = (
         robot, camera, target, desired_pose = None, *, desired_pixels = None, desired_depth = None,
         tasks = "sequence", gains = [0.5; 4], classical_gain = 0.5, depth = None, avoidance_gain = 10.0,
         activation_ratio = 0.1, transition_gain = None, max_joint_velocity = None, convergence_error = 1e-4,
-        controller = None, protect_centroid = true
+        controller = None, protect_centroid = true, method = "full_method", control_period = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -331,6 +340,8 @@ impl VisualServo {
         convergence_error: f64,
         controller: Option<&Bound<'_, PyAny>>,
         protect_centroid: bool,
+        method: &str,
+        control_period: Option<f64>,
     ) -> PyResult<Self> {
         let desired = match (desired_pose, desired_pixels, desired_depth) {
             (Some(pose), None, None) => {
@@ -353,6 +364,16 @@ impl VisualServo {
             other => {
                 return Err(PyValueError::new_err(format!(
                     "tasks = {other:?}: expected \"sequence\" or \"classical\""
+                )))
+            }
+        };
+        let method = match method {
+            "full_method" => ServoMethod::FullMethod,
+            "sns" => ServoMethod::SaturationInNullSpace,
+            "hqp" => ServoMethod::HierarchicalQp,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "method = {other:?}: expected \"full_method\", \"sns\" or \"hqp\""
                 )))
             }
         };
@@ -379,6 +400,8 @@ impl VisualServo {
                 .transpose()?,
             convergence_error,
             protect_centroid,
+            method,
+            control_period_s: control_period,
         };
         let servo = with_joint_count(robot.joints(), Build { robot, parts })
             .map_err(raise::<ServoError>)??;

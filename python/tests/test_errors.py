@@ -85,6 +85,12 @@ def test_bad_poses_and_parameters_are_value_errors(paper):
         ss.VisualServo(robot, camera, (0.2, 0.1), goal, convergence_error=-1.0)
     with pytest.raises(ValueError, match="max_joint_velocity: 2 values"):
         ss.VisualServo(robot, camera, (0.2, 0.1), goal, max_joint_velocity=[1.0, 1.0])
+    with pytest.raises(ValueError, match='method = "qp"'):
+        ss.VisualServo(robot, camera, (0.2, 0.1), goal, method="qp")
+    with pytest.raises(ss.ServoError, match="control_period"):
+        ss.VisualServo(robot, camera, (0.2, 0.1), goal, method="sns")
+    with pytest.raises(ss.ServoError, match="control_period_s"):
+        ss.VisualServo(robot, camera, (0.2, 0.1), goal, method="hqp", control_period=0.0)
     with pytest.raises(ValueError, match="unknown method"):
         paper.run("gradient")
     with pytest.raises(ss.Error, match="rpy_deg"):

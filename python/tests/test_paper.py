@@ -127,6 +127,34 @@ def test_readme_first_loop_converges_after_15_9_s(repo):
     assert f"{t:.1f}" == "15.9"
 
 
+@pytest.mark.parametrize("method", ["sns", "hqp"])
+@pytest.mark.parametrize("sequencing", ["one_by_one", "all_at_once"])
+def test_the_boxed_laws_converge_from_the_readme_start_inside_their_box(repo, method, sequencing):
+    """SNS and the QP cascade in the servo: the README's first loop converges, each velocity keeps q + v dt inside the
+    limits, and all at once the four tasks are stacked from the first period."""
+    robot = ss.Robot.builtin("afma6")
+    camera = ss.Camera.from_file(repo / "tests/data/ros_camera_info.yaml")
+    goal = ss.pose([0.0, 0.0, 0.5])
+    dt = 0.01
+    servo = ss.VisualServo(
+        robot, camera, (0.2, 0.1), goal, method=method, control_period=dt, controller={"sequencing": sequencing}
+    )
+    q_goal = np.array([0.0, 0.0, 0.0, 0.0, 1.2, 0.0])
+    q = q_goal + np.array([0.05, -0.04, 0.03, 0.05, -0.05, 0.1])
+    world = ss.Experiment(robot, camera, (0.2, 0.1), q_goal, goal, q)
+    lower, upper = robot.lower_limits, robot.upper_limits
+    for i in range(6000):
+        v = servo.step(i * dt, world.corners(q), q)
+        if i == 0:
+            assert len(servo.output["stacked"]) == (4 if sequencing == "all_at_once" else 1)
+        if servo.converged:
+            break
+        q = q + v * dt
+        assert np.all(q >= lower) and np.all(q <= upper)
+    assert servo.converged
+    assert all(e["kind"] == "push" for e in servo.events)
+
+
 def test_readme_your_robot_converges_after_1598_iterations(repo):
     """The README's 'Your robot' program in Python: a URDF arm, its mount, the full method with the paper's settings."""
     robot = ss.Robot.from_urdf(

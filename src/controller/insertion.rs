@@ -4,19 +4,28 @@
 use super::*;
 
 impl<const N: usize> StackController<N> {
+    /// Pushes the next task of the sequence, or, with [`TaskSequencing::AllAtOnce`], every task left in it: one
+    /// change, each push logged at this iteration.
     pub(super) fn push_next(&mut self, iteration: usize, time: f64) {
-        let task = self.next_push;
-        self.next_push += 1;
-        self.insert_by_priority(task);
-        self.record(StackEvent {
-            iteration,
-            time,
-            kind: EventKind::Push,
-            task,
-            law_jump: 0.0,
-            removal: None,
-            reinsertion: None,
-        });
+        loop {
+            let task = self.next_push;
+            self.next_push += 1;
+            self.insert_by_priority(task);
+            self.record(StackEvent {
+                iteration,
+                time,
+                kind: EventKind::Push,
+                task,
+                law_jump: 0.0,
+                removal: None,
+                reinsertion: None,
+            });
+            if self.parameters.sequencing == TaskSequencing::OneByOne
+                || self.next_push >= self.sequence_len()
+            {
+                break;
+            }
+        }
     }
 
     pub(super) fn insert_by_priority(&mut self, task: usize) {

@@ -143,6 +143,7 @@ pub use events::{
 };
 pub use parameters::{
     ControllerError, ControllerParameters, DecisionRule, HardLimitRule, RemovalCriterion,
+    TaskSequencing,
 };
 
 /// The controller's phase: what it may do at the next iteration ([theory §6.6](crate::theory#s6-6)). Its

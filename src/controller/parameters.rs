@@ -80,6 +80,20 @@ pub enum HardLimitRule {
     SaturateInNullSpace,
 }
 
+/// How the tasks of the sequence enter the stack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TaskSequencing {
+    /// The paper's sequencing (D5, default): the first task from the first iteration, each next one pushed when the
+    /// stack has settled (or earlier by D28).
+    #[default]
+    OneByOne,
+    /// The whole sequence (every task but a reserve one, D23) stacked at the first iteration, in priority order, as a
+    /// hierarchical controller without sequencing would: the form the Stack of Tasks, OpenSoT or a QP cascade usually
+    /// run. Pushes after a restart (D29) are then also made at once.
+    AllAtOnce,
+}
+
 /// The thresholds of the controller, with their units. Immutable once the controller is built.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -234,6 +248,8 @@ pub struct ControllerParameters {
     /// How the full method keeps the joints inside their hard limits: the braking and the lock (D25, D26, default), or
     /// saturation in the null space (theory §13), which then replaces both (`braking_rate` and `lock_band` unused).
     pub hard_limit_rule: HardLimitRule,
+    /// Whether the tasks are pushed one by one (the paper's sequencing, default) or all at the first iteration.
+    pub sequencing: TaskSequencing,
 }
 
 impl Default for ControllerParameters {
@@ -266,6 +282,7 @@ impl Default for ControllerParameters {
             restart_timeout: 5.0,
             singular_value_floor: 3e-4,
             hard_limit_rule: HardLimitRule::BrakeAndLock,
+            sequencing: TaskSequencing::OneByOne,
         }
     }
 }

@@ -8,7 +8,9 @@ use crate::camera::{CalibratedCamera, EyeInHand, ImagePoint};
 use crate::controller::{ControllerParameters, HardLimitRule, StackController};
 use crate::depth::DepthSource;
 use crate::feature::{InteractionSource, Observation};
-use crate::law::ControlLaw;
+use crate::law::sns::SnsBounds;
+use crate::law::{BoundedLaw, ControlLaw};
+use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
 use crate::robot::{KinematicsWorkspace, SerialChain};
 use crate::stack::StackParameters;
@@ -57,6 +59,37 @@ pub enum TaskChoice {
     },
 }
 
+/// Which law drives the robot and keeps its joints inside their limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ServoMethod {
+    /// The paper's full method (default): the stack controller removes and puts back tasks, with the avoidance term,
+    /// and keeps the joints inside their limits as [`ControllerParameters::hard_limit_rule`] says (the braking and
+    /// the lock of D25 and D26 by default).
+    #[default]
+    FullMethod,
+    /// Saturation in the null space ([theory §13](crate::theory#s13)): the same tasks in the same sequence (or all at
+    /// once, [`ControllerParameters::sequencing`]), the joint-limit cost as a last level, every joint velocity inside
+    /// the box of the position limits over [`ServoConfig::control_period_s`] and of [`ServoConfig::max_joint_velocity`];
+    /// no removal, no reserve task, the truncated pseudo-inverse (as in the study).
+    SaturationInNullSpace,
+    /// The hierarchical QP cascade ([theory §14](crate::theory#s14)) in the same box, with the same tasks and
+    /// sequence as [`Self::SaturationInNullSpace`].
+    HierarchicalQp,
+}
+
+impl ServoMethod {
+    /// The law that keeps the velocity in the box of the hard bounds, if any (the full method with its default rule
+    /// brakes and locks instead).
+    fn bounded_law(self, rule: HardLimitRule) -> Option<BoundedLaw> {
+        match (self, rule) {
+            (Self::FullMethod, HardLimitRule::BrakeAndLock) => None,
+            (Self::FullMethod, HardLimitRule::SaturateInNullSpace)
+            | (Self::SaturationInNullSpace, _) => Some(BoundedLaw::SaturationInNullSpace),
+            (Self::HierarchicalQp, _) => Some(BoundedLaw::HierarchicalQp),
+        }
+    }
+}
+
 impl Default for TaskChoice {
     fn default() -> Self {
         Self::Sequence {
@@ -103,6 +136,13 @@ pub struct ServoConfig<const N: usize> {
     /// The servo has converged when every task is stacked and `‖e_i‖ < convergence_error` for each (in the tasks'
     /// units: normalised image coordinates, rad, dimensionless; see [`ServoOutput::converged`]). Default 1e−4.
     pub convergence_error: f64,
+    /// The law (default: the paper's full method).
+    pub method: ServoMethod,
+    /// The period of the control loop (s, in `(0, 1]`): the time over which a velocity is held, which sizes the box
+    /// `q_min ≤ q + q̇ Δt ≤ q_max` of saturation in the null space and of the QP cascade. Required by those laws (a
+    /// [`ServoMethod`] other than the full method, or the full method's `hard_limit_rule = SaturateInNullSpace`); give
+    /// the longest period the loop may take. Default `None`.
+    pub control_period_s: Option<f64>,
     /// Whether the centroid task (the first) is never removed ([D6](crate::theory#d6)): it keeps the target in the
     /// image. Default `true`.
     pub protect_centroid: bool,
@@ -133,6 +173,8 @@ impl<const N: usize> ServoConfig<N> {
             max_joint_velocity: JointVector::repeat(f64::INFINITY),
             adaptive_gain: None,
             convergence_error: 1e-4,
+            method: ServoMethod::FullMethod,
+            control_period_s: None,
             protect_centroid: true,
         }
     }
@@ -143,8 +185,9 @@ impl<const N: usize> VisualServo<N> {
     ///
     /// # Errors
     /// [`ServoError::InvalidParameter`] (velocity limits, convergence threshold, desired depth),
-    /// [`ServoError::UnsupportedDepthSource`], [`ServoError::UnsupportedHardLimitRule`], and the models' errors (a desired corner that does not undistort, a
-    /// feature undefined on the desired image, invalid gains, `μ`, `κ`, `ρ`, controller or depth parameters).
+    /// [`ServoError::UnsupportedDepthSource`], [`ServoError::MissingControlPeriod`], and the models' errors (a desired
+    /// corner that does not undistort, a feature undefined on the desired image, invalid gains, `μ`, `κ`, `ρ`,
+    /// controller or depth parameters).
     pub fn new(config: ServoConfig<N>) -> Result<Self, ServoError> {
         let invalid = |name, value, expected| ServoError::InvalidParameter {
             name,
@@ -165,9 +208,25 @@ impl<const N: usize> VisualServo<N> {
         if config.depth == DepthSource::PreviousPlane {
             return Err(ServoError::UnsupportedDepthSource);
         }
-        if config.controller.hard_limit_rule != HardLimitRule::BrakeAndLock {
-            return Err(ServoError::UnsupportedHardLimitRule);
-        }
+        let bounded_law = config.method.bounded_law(config.controller.hard_limit_rule);
+        let full_method = config.method == ServoMethod::FullMethod;
+        let bounds = match (bounded_law, config.control_period_s) {
+            (None, _) => None,
+            (Some(_), None) => return Err(ServoError::MissingControlPeriod),
+            (Some(law), Some(period)) => {
+                if !(period.is_finite() && period > 0.0 && period <= 1.0) {
+                    return Err(invalid("control_period_s", period, "in (0, 1] s"));
+                }
+                let limits = JointLimits::new(
+                    *config.chain.lower_limits(),
+                    *config.chain.upper_limits(),
+                    config.activation_ratio,
+                )?;
+                let bounds = SnsBounds::new(limits, config.max_joint_velocity, period)
+                    .map_err(|e| ServoError::Law(e.into()))?;
+                Some((law, bounds))
+            }
+        };
         config.depth.validate()?;
         let (desired_points, desired_depth) = desired_points(&config)?;
         let desired =
@@ -185,7 +244,9 @@ impl<const N: usize> VisualServo<N> {
                     config.interaction,
                     fourth,
                 )?;
-                tasks.push(image_points_task(&desired, gains[3], config.interaction)?);
+                if full_method {
+                    tasks.push(image_points_task(&desired, gains[3], config.interaction)?);
+                }
                 tasks
             }
             TaskChoice::Classical { gain, fourth } => vec![classical_task_with(
@@ -208,12 +269,33 @@ impl<const N: usize> VisualServo<N> {
         let mu = config
             .transition_gain
             .unwrap_or(ControlLaw::TRANSITION_TO_TASK_GAIN_RATIO * max_gain);
+        // SNS and the QP cascade run as in the study: the truncated pseudo-inverse of D2, no removal, no braking and
+        // no lock (the box keeps the limits).
         let stack = StackParameters {
-            velocity_inverse: config.controller.velocity_inverse(),
+            velocity_inverse: if full_method {
+                config.controller.velocity_inverse()
+            } else {
+                VelocityInverse::Truncated
+            },
             ..StackParameters::default()
         };
+        let boxed = bounded_law.is_some();
+        let parameters = ControllerParameters {
+            allow_removal: full_method && config.controller.allow_removal,
+            braking_rate: if boxed {
+                f64::INFINITY
+            } else {
+                config.controller.braking_rate
+            },
+            lock_band: if boxed {
+                0.0
+            } else {
+                config.controller.lock_band
+            },
+            ..config.controller
+        };
         let law = ControlLaw::with_stack_parameters(stack, mu, config.avoidance_gain)?;
-        let protected: &[usize] = if config.protect_centroid && tasks.len() > 1 {
+        let protected: &[usize] = if full_method && config.protect_centroid && tasks.len() > 1 {
             &[0]
         } else {
             &[]
@@ -223,11 +305,14 @@ impl<const N: usize> VisualServo<N> {
             *config.chain.upper_limits(),
             config.activation_ratio,
         )?;
-        let mut controller = StackController::new(config.controller, &values)?
+        let mut controller = StackController::new(parameters, &values)?
             .with_protected_tasks(protected)?
             .with_joint_limits(limits.clone())?;
-        if matches!(config.tasks, TaskChoice::Sequence { .. }) {
+        if full_method && matches!(config.tasks, TaskChoice::Sequence { .. }) {
             controller = controller.with_reserve_task()?;
+        }
+        if let Some((law, bounds)) = bounds {
+            controller = controller.with_bounded_law(law, bounds)?;
         }
         let estimator = config.depth.estimator(4)?;
         let task_count = tasks.len();

@@ -32,13 +32,15 @@ pub enum ServoError {
     /// [`DepthSource::TargetPose`]: crate::depth::DepthSource::TargetPose
     #[error("depth source `previous_plane` is not supported by the servo façade (use desired, constant, target_pose or estimated)")]
     UnsupportedDepthSource,
-    /// [`HardLimitRule::SaturateInNullSpace`] asked of the façade, which keeps its joints inside their limits by the
-    /// braking and the lock of D25 and D26 (at construction): saturation in the null space runs in scenarios
-    /// (`RunKind::Sns`, or the full method's `hard_limit_rule` there), where the period that sizes its box is known.
+    /// Saturation in the null space or the QP cascade asked for ([`ServoMethod`], or the full method's
+    /// [`HardLimitRule::SaturateInNullSpace`]) without [`ServoConfig::control_period_s`], which sizes their box (at
+    /// construction).
     ///
+    /// [`ServoMethod`]: super::ServoMethod
+    /// [`ServoConfig::control_period_s`]: super::ServoConfig::control_period_s
     /// [`HardLimitRule::SaturateInNullSpace`]: crate::controller::HardLimitRule::SaturateInNullSpace
-    #[error("controller.hard_limit_rule `saturate_in_null_space` is not supported by the servo façade (it brakes and locks, D25 and D26; use a scenario for SNS)")]
-    UnsupportedHardLimitRule,
+    #[error("saturation in the null space and the QP cascade need the control period: set ServoConfig::control_period_s (s), the longest period of your loop")]
+    MissingControlPeriod,
     /// The detector did not deliver corner `index` (`None`).
     #[error("corner {index} is missing")]
     MissingCorner {

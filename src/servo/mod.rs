@@ -64,7 +64,7 @@ mod output;
 mod step;
 
 pub use adaptive_gain::AdaptiveGain;
-pub use config::{DesiredImage, ServoConfig, TaskChoice};
+pub use config::{DesiredImage, ServoConfig, ServoMethod, TaskChoice};
 pub use error::ServoError;
 pub use output::ServoOutput;
 

@@ -11,8 +11,8 @@ use servostack::math::JointVector;
 use servostack::robot::{builtin, KinematicsWorkspace};
 use servostack::scenario::{Experiment, Scenario};
 use servostack::servo::{
-    AdaptiveGain, Corners, DesiredImage, ServoConfig, ServoError, ServoOutput, TaskChoice,
-    VisualServo,
+    AdaptiveGain, Corners, DesiredImage, ServoConfig, ServoError, ServoMethod, ServoOutput,
+    TaskChoice, VisualServo,
 };
 use servostack::sim::Scene;
 use servostack::target::RectangleTarget;
@@ -24,7 +24,7 @@ fn lens() -> BrownConrady {
     BrownConrady::new(-0.12, 0.03, 4e-4, -3e-4, 0.0).unwrap()
 }
 
-fn paper() -> (Scenario, Experiment<6>) {
+pub(crate) fn paper() -> (Scenario, Experiment<6>) {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/assets/scenarios/paper_afma6.toml"
@@ -36,7 +36,7 @@ fn paper() -> (Scenario, Experiment<6>) {
 
 /// The façade's configuration for the paper scenario, with the scenario's gains, `κ`, `ρ` and controller, seen through
 /// `camera`.
-fn paper_config(
+pub(crate) fn paper_config(
     scenario: &Scenario,
     experiment: &Experiment<6>,
     camera: CalibratedCamera,
@@ -61,17 +61,22 @@ fn paper_config(
 }
 
 /// The simulated robot and camera: Euler integration of the velocity sent, pixels through the true camera.
-struct Plant {
+pub(crate) struct Plant {
     scene: Scene<6>,
     camera: CalibratedCamera,
     workspace: KinematicsWorkspace<6>,
-    q: JointVector<6>,
+    pub(crate) q: JointVector<6>,
     period: f64,
     iteration: usize,
 }
 
 impl Plant {
-    fn new(scene: Scene<6>, camera: CalibratedCamera, q: JointVector<6>, period: f64) -> Self {
+    pub(crate) fn new(
+        scene: Scene<6>,
+        camera: CalibratedCamera,
+        q: JointVector<6>,
+        period: f64,
+    ) -> Self {
         Self {
             scene,
             camera,
@@ -109,7 +114,7 @@ impl Plant {
     }
 
     /// The camera pose error against the pose at `goal` (mm, deg).
-    fn pose_error(&mut self, goal: &JointVector<6>) -> (f64, f64) {
+    pub(crate) fn pose_error(&mut self, goal: &JointVector<6>) -> (f64, f64) {
         let mount = builtin::afma6().unwrap().mount;
         let chain = self.scene.chain().clone();
         let now = mount.base_from_camera(
@@ -132,7 +137,7 @@ impl Plant {
     }
 }
 
-fn distorted_camera(scene: &Scene<6>) -> CalibratedCamera {
+pub(crate) fn distorted_camera(scene: &Scene<6>) -> CalibratedCamera {
     CalibratedCamera {
         intrinsics: *scene.intrinsics(),
         distortion: lens(),
@@ -141,7 +146,7 @@ fn distorted_camera(scene: &Scene<6>) -> CalibratedCamera {
 
 /// Runs the closed loop for at most `max_steps` periods (stopping at convergence), checking every output with `check`;
 /// returns the outputs.
-fn run_loop(
+pub(crate) fn run_loop(
     servo: &mut VisualServo<6>,
     plant: &mut Plant,
     max_steps: usize,
@@ -835,16 +840,16 @@ fn the_classical_task_converges_on_the_peer_scene() {
 
 /// The classical task of the paper scenario through the façade, with the last wrist joint's lower limit raised above
 /// its goal (−0.2 rad against −0.397): the task drives that joint into its limit.
-struct RaisedWristLimit {
-    config: ServoConfig<6>,
-    limits: JointLimits<6>,
+pub(crate) struct RaisedWristLimit {
+    pub(crate) config: ServoConfig<6>,
+    pub(crate) limits: JointLimits<6>,
     scene: Scene<6>,
     camera: CalibratedCamera,
     start: JointVector<6>,
 }
 
 impl RaisedWristLimit {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         let (scenario, experiment) = paper();
         let camera = distorted_camera(&experiment.scene);
         let mut config = paper_config(&scenario, &experiment, camera);
@@ -868,7 +873,7 @@ impl RaisedWristLimit {
 
     /// Runs `config` for up to 3000 periods, calling `check` on each output (with the servo, before the velocity is
     /// applied, and the allocations the step made); returns whether a limit was crossed and the last output.
-    fn run(
+    pub(crate) fn run(
         &self,
         config: ServoConfig<6>,
         check: &mut dyn FnMut(&VisualServo<6>, &ServoOutput<6>, &JointVector<6>, usize),
@@ -1005,12 +1010,37 @@ fn invalid_configurations_are_named_errors() {
         VisualServo::new(config),
         Err(ServoError::UnsupportedDepthSource)
     ));
+    // Saturation in the null space and the QP cascade need the period that sizes their box.
     let mut config = base.clone();
     config.controller.hard_limit_rule = HardLimitRule::SaturateInNullSpace;
     assert!(matches!(
         VisualServo::new(config),
-        Err(ServoError::UnsupportedHardLimitRule)
+        Err(ServoError::MissingControlPeriod)
     ));
+    for method in [
+        ServoMethod::SaturationInNullSpace,
+        ServoMethod::HierarchicalQp,
+    ] {
+        let mut config = base.clone();
+        config.method = method;
+        assert!(matches!(
+            VisualServo::new(config.clone()),
+            Err(ServoError::MissingControlPeriod)
+        ));
+        for period in [0.0, -0.01, 2.0, f64::NAN, f64::INFINITY] {
+            config.control_period_s = Some(period);
+            assert!(
+                matches!(
+                    VisualServo::new(config.clone()),
+                    Err(ServoError::InvalidParameter {
+                        name: "control_period_s",
+                        ..
+                    })
+                ),
+                "{method:?}, period {period}"
+            );
+        }
+    }
     let mut config = base.clone();
     config.depth = DepthSource::Constant { depth_m: -0.5 };
     assert!(matches!(
