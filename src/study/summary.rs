@@ -3,7 +3,7 @@
 //! shards ([`StudyResult::merge`](super::StudyResult::merge)).
 
 use super::{
-    median, DrawResult, Family, FamilyResult, MethodResult, MethodSummary, POSE_TOLERANCE_DEG,
+    DrawResult, Family, FamilyResult, MethodResult, MethodSummary, POSE_TOLERANCE_DEG,
     POSE_TOLERANCE_M,
 };
 use crate::scenario::RunKind;
@@ -87,5 +87,20 @@ pub(super) fn summarize(
             .filter(|d| d.straight_feasible && converged(d, full))
             .count(),
         draws,
+    }
+}
+
+/// The median of `values` (`NaN` when empty).
+fn median(values: impl Iterator<Item = f64>) -> f64 {
+    let mut values: Vec<f64> = values.collect();
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let mid = values.len() / 2;
+    if values.len() % 2 == 1 {
+        values[mid]
+    } else {
+        0.5 * (values[mid - 1] + values[mid])
     }
 }
