@@ -164,7 +164,7 @@ fn leaf<'v>(value: &'v mut Value, path: &str) -> &'v mut Value {
 
 /// The values tried in place of a leaf, in order.
 fn candidates(value: &Value) -> Vec<Value> {
-    const WORDS: [&[&str]; 8] = [
+    const WORDS: [&[&str]; 9] = [
         &["desired", "previous_plane", "target_pose"],
         &["exact", "paper_approx", "desired"],
         &["auto", "paper_invariants", "side_ratios"],
@@ -173,6 +173,7 @@ fn candidates(value: &Value) -> Vec<Value> {
         &["hold", "predict"],
         &["afma6", "afma6_coupled"],
         &["brake_and_lock", "saturate_in_null_space"],
+        &["one_by_one", "all_at_once"],
     ];
     match value {
         Value::Float(x) => [
