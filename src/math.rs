@@ -153,6 +153,35 @@ pub fn velocity_limit_scale<const N: usize>(
         .fold(1.0, f64::min)
 }
 
+/// The largest `σ ∈ [0, 1]` such that `|σ (target_i − previous_i)| ≤ a_i Δt` for every joint: the uniform scaling of
+/// the change from the velocity sent last, `previous`, to `target` into the per-joint acceleration limits
+/// `max_acceleration` (`a_i`, units of each joint per second squared, `> 0`; `+∞` for no limit) over the period
+/// `period` (`Δt`, s, `≥ 0`). Sent as `previous + σ (target − previous)`, the change keeps its direction
+/// ([D31](crate::theory#d31)). `1` when every change is within its limit; `0` when `Δt = 0` and a limited joint's
+/// velocity changes.
+pub fn acceleration_limit_scale<const N: usize>(
+    previous: &JointVector<N>,
+    target: &JointVector<N>,
+    max_acceleration: &JointVector<N>,
+    period: f64,
+) -> f64 {
+    let mut scale: f64 = 1.0;
+    for ((p, t), a) in previous
+        .iter()
+        .zip(target.iter())
+        .zip(max_acceleration.iter())
+    {
+        let change = (t - p).abs();
+        if a.is_finite() && change > 0.0 {
+            let allowed = a * period;
+            if allowed < change {
+                scale = scale.min(allowed / change);
+            }
+        }
+    }
+    scale.max(0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

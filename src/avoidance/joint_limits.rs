@@ -21,6 +21,57 @@ use super::{checked_cost, dead_band, Cost, CostError};
 use crate::bounds::JOINT_POSITION;
 use crate::math::{first_non_finite, velocity_limit_scale, JointVector};
 
+/// The largest speed (m/s or rad/s) towards a limit at distance `distance` (m or rad; clamped at 0) that the braking
+/// of [D25](crate::theory#d25) at rate `rate` (`ξ`, s⁻¹) allows when the velocity may change by at most
+/// `deceleration · period` per period (`aΔt`; [D31](crate::theory#d31)):
+///
+/// ```text
+/// B(d) = ξ d                     for ξ² d ≤ a   (the exponential approach of D25, which slows by ξ² d ≤ a)
+/// B(d) = min( ξ d, S(d − c) )    beyond,        S(x) = ( −aΔt + √(a²Δt² + 8 a x) ) / 2
+/// ```
+///
+/// `S(x)` is the largest speed `v` with `v (v + aΔt) ≤ 2 a x`: slowing by `aΔt` each period from `v` to rest covers
+/// `x`. The offset `c` (`a/(2ξ²)` as `Δt → 0`, where `B` is continuous) is the distance the exponential approach needs
+/// at the end; it is the smallest that keeps the set `v ≤ B(d)` invariant: from any speed `v ≤ B(d)` held for `Δt`,
+/// the speed `v − aΔt` (or any lower) is again within `B` at the new distance `d − vΔt`. So the joint can always brake
+/// in time without changing its velocity by more than `aΔt` per period, and with `ξ Δt ≤ 1`, `v Δt ≤ ξ d Δt ≤ d`: the
+/// limit is never crossed. `ξ d` alone for `deceleration = +∞`; `+∞` for `rate = +∞` (no braking); 0 for a
+/// deceleration that is not `> 0`.
+pub fn braking_speed(distance: f64, rate: f64, deceleration: f64, period: f64) -> f64 {
+    let d = distance.max(0.0);
+    if rate == f64::INFINITY {
+        return f64::INFINITY;
+    }
+    let linear = rate * d;
+    if deceleration == f64::INFINITY {
+        return linear;
+    }
+    if !(deceleration > 0.0 && rate > 0.0) {
+        return 0.0;
+    }
+    let (a, xi) = (deceleration, rate);
+    let junction = a / (xi * xi);
+    if d <= junction {
+        return linear;
+    }
+    let h = a * period.max(0.0);
+    let growth = 1.0 + xi * period.max(0.0);
+    // The least speed one period of the exponential approach may need from d: L(d) = (ξ d + aΔt) / (1 + ξΔt). The
+    // offset makes S(d − c) ≤ L(d) beyond the junction: c = max over d ≥ a/ξ² of d − L(L + aΔt)/(2a), a concave
+    // parabola in d, whose maximum is at its vertex (where L = a(1 + ξΔt)/ξ − aΔt/2) or at the junction.
+    let vertex = (growth * (a * growth / xi - 0.5 * h) - h) / xi;
+    let at = vertex.max(junction);
+    let speed_there = (xi * at + h) / growth;
+    let offset = at - speed_there * (speed_there + h) / (2.0 * a);
+    let x = d - offset;
+    let stopping = if x > 0.0 {
+        0.5 * (-h + (h * h + 8.0 * a * x).sqrt())
+    } else {
+        0.0
+    };
+    linear.min(stopping)
+}
+
 /// Joint limits and the cost [\[M20\]](crate::theory#m20) that keeps a configuration away from them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointLimits<const N: usize> {
@@ -131,6 +182,71 @@ impl<const N: usize> JointLimits<N> {
             }
         }
         scale
+    }
+
+    /// The braking of [D25](crate::theory#d25) under acceleration limits ([D31](crate::theory#d31)): the uniform scale
+    /// `s ∈ [0, 1]` such that every joint moving towards a finite limit keeps `|s q̇_i| ≤ B_i`, with `B_i =`
+    /// [`braking_speed`]`(d_i, ξ, a_i, Δt)`: the speed from which the joint can still stop before its limit when its
+    /// velocity changes by at most `a_i Δt` per period. `max_acceleration` holds `a_i` (`> 0`, `+∞`: none; all `+∞`
+    /// gives [`Self::braking_scale`] exactly); `period` is the period `Δt` (s, `≥ 0`) the velocity is held. A rate of
+    /// `+∞` never brakes.
+    pub fn braking_scale_under_acceleration(
+        &self,
+        q: &JointVector<N>,
+        velocity: &JointVector<N>,
+        rate: f64,
+        max_acceleration: &JointVector<N>,
+        period: f64,
+    ) -> f64 {
+        if rate == f64::INFINITY {
+            return 1.0;
+        }
+        let mut scale: f64 = 1.0;
+        for joint in 0..N {
+            let speed = velocity[joint];
+            let distance = if speed > 0.0 {
+                self.upper[joint] - q[joint]
+            } else if speed < 0.0 {
+                q[joint] - self.lower[joint]
+            } else {
+                continue;
+            };
+            let allowed = braking_speed(distance, rate, max_acceleration[joint], period);
+            if allowed < speed.abs() {
+                scale = scale.min(allowed / speed.abs());
+            }
+        }
+        scale
+    }
+
+    /// Clamps each joint of `velocity` into `[−B(q_i − q_i^min), B(q_i^max − q_i)]`, `B` the [`braking_speed`] at rate
+    /// `rate` with the joint's acceleration limit over `period` ([D31](crate::theory#d31)); returns whether a joint was
+    /// clamped. The clamp is per joint, so it changes the velocity's direction; it only ever slows a joint down. A
+    /// velocity that changed by at most `a_i Δt` from one within these bounds at the last period stays within `a_i Δt`
+    /// of it once clamped (the bounds are invariant, [`braking_speed`]). A rate of `+∞` clamps nothing.
+    pub fn clamp_to_stopping_distance(
+        &self,
+        q: &JointVector<N>,
+        velocity: &mut JointVector<N>,
+        rate: f64,
+        max_acceleration: &JointVector<N>,
+        period: f64,
+    ) -> bool {
+        if rate == f64::INFINITY {
+            return false;
+        }
+        let mut clamped = false;
+        for joint in 0..N {
+            let a = max_acceleration[joint];
+            let high = braking_speed(self.upper[joint] - q[joint], rate, a, period);
+            let low = -braking_speed(q[joint] - self.lower[joint], rate, a, period);
+            let v = velocity[joint];
+            if v > high || v < low {
+                velocity[joint] = v.clamp(low, high);
+                clamped = true;
+            }
+        }
+        clamped
     }
 
     /// The lock of [D26](crate::theory#d26): marks in `locked` every joint within `band · Δq_i` of a finite limit

@@ -25,7 +25,7 @@ pub mod visibility;
 
 pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
-pub use joint_limits::JointLimits;
+pub use joint_limits::{braking_speed, JointLimits};
 pub use mesh::{MeshPaths, MAX_COLLADA_DEPTH, MAX_MESH_BYTES};
 pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 pub use visibility::VisibilityCost;

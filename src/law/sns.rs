@@ -59,8 +59,8 @@ pub enum SnsError {
         /// The limit given.
         value: f64,
     },
-    /// A joint's acceleration limit must be finite and positive.
-    #[error("joint {joint}: acceleration limit {value} must be finite and > 0")]
+    /// A joint's acceleration limit must be positive (`+∞`: none).
+    #[error("joint {joint}: acceleration limit {value} must be > 0 (or +∞)")]
     InvalidAccelerationLimit {
         /// The joint (0-based).
         joint: usize,
@@ -135,7 +135,7 @@ impl<const N: usize> SnsBounds<N> {
         })
     }
 
-    /// The same bounds with acceleration limits (m/s² or rad/s², finite, `> 0`).
+    /// The same bounds with acceleration limits (m/s² or rad/s², `> 0`; `+∞` for none on that joint).
     ///
     /// # Errors
     /// [`SnsError::InvalidAccelerationLimit`].
@@ -146,7 +146,7 @@ impl<const N: usize> SnsBounds<N> {
         let invalid = max_acceleration
             .iter()
             .enumerate()
-            .find(|(_, a)| !(a.is_finite() && **a > 0.0));
+            .find(|(_, a)| a.is_nan() || **a <= 0.0);
         if let Some((joint, &value)) = invalid {
             return Err(SnsError::InvalidAccelerationLimit { joint, value });
         }
@@ -191,7 +191,7 @@ impl<const N: usize> SnsBounds<N> {
                 (q_max - q[i]) * (1.0 - POSITION_MARGIN),
             );
             let (mut lo, mut hi) = (below / dt, above / dt);
-            if let Some(a) = &self.max_acceleration {
+            if let Some(a) = self.max_acceleration.as_ref().filter(|a| a[i].is_finite()) {
                 lo = lo.max(-(2.0 * a[i] * (-below).max(0.0)).sqrt());
                 hi = hi.min((2.0 * a[i] * above.max(0.0)).sqrt());
             }
@@ -199,7 +199,7 @@ impl<const N: usize> SnsBounds<N> {
             lo = lo.min(hi);
             let v = self.max_velocity[i];
             (lo, hi) = (lo.clamp(-v, v), hi.clamp(-v, v));
-            if let Some(a) = &self.max_acceleration {
+            if let Some(a) = self.max_acceleration.as_ref().filter(|a| a[i].is_finite()) {
                 let (band_lo, band_hi) = (previous[i] - a[i] * dt, previous[i] + a[i] * dt);
                 (lo, hi) = if band_lo > hi {
                     (hi, hi)

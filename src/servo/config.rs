@@ -131,6 +131,13 @@ pub struct ServoConfig<const N: usize> {
     pub depth: DepthSource,
     /// `q̇_i^max` per joint (rad/s for revolute, m/s for prismatic joints, > 0; `+∞`: no limit). Default: no limit.
     pub max_joint_velocity: JointVector<N>,
+    /// `a_i`, the largest change of joint `i`'s velocity per second (rad/s² for revolute, m/s² for prismatic joints,
+    /// > 0; `+∞`: no limit). Default: no limit (the paper's runs and the README's figures are without); an industrial
+    /// arm's controller allows a few rad/s² (2 to 5) and about 1 m/s² on a gantry's axes. The change from the last
+    /// velocity sent is scaled uniformly so that `|Δq̇_i| ≤ a_i Δt`, `Δt` the time since the last accepted period, and
+    /// the braking of [D25](crate::theory#d25) keeps the stopping distance ([D31](crate::theory#d31)); SNS and the QP
+    /// cascade get the limits in their box too.
+    pub max_joint_acceleration: JointVector<N>,
     /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's constant gain (default `None`: the constant gains).
     pub adaptive_gain: Option<AdaptiveGain>,
     /// The servo has converged when every task is stacked and `‖e_i‖ < convergence_error` for each (in the tasks'
@@ -141,7 +148,9 @@ pub struct ServoConfig<const N: usize> {
     /// The period of the control loop (s, in `(0, 1]`): the time over which a velocity is held, which sizes the box
     /// `q_min ≤ q + q̇ Δt ≤ q_max` of saturation in the null space and of the QP cascade. Required by those laws (a
     /// [`ServoMethod`] other than the full method, or the full method's `hard_limit_rule = SaturateInNullSpace`); give
-    /// the longest period the loop may take. Default `None`.
+    /// the longest period the loop may take. With acceleration limits it also sizes the braking's stopping distance
+    /// ([D31](crate::theory#d31)): a velocity is assumed held for at most `max(Δt, control_period_s)`, `Δt` the last
+    /// period, so give the longest hold (a bad frame held adds a period). Default `None`.
     pub control_period_s: Option<f64>,
     /// Whether the centroid task (the first) is never removed ([D6](crate::theory#d6)): it keeps the target in the
     /// image. Default `true`.
@@ -171,6 +180,7 @@ impl<const N: usize> ServoConfig<N> {
             controller: ControllerParameters::default(),
             depth: DepthSource::Desired,
             max_joint_velocity: JointVector::repeat(f64::INFINITY),
+            max_joint_acceleration: JointVector::repeat(f64::INFINITY),
             adaptive_gain: None,
             convergence_error: 1e-4,
             method: ServoMethod::FullMethod,
@@ -184,7 +194,7 @@ impl<const N: usize> VisualServo<N> {
     /// Builds the servo: desired image, tasks, controller, law, joint-limit cost, depth estimator.
     ///
     /// # Errors
-    /// [`ServoError::InvalidParameter`] (velocity limits, convergence threshold, desired depth),
+    /// [`ServoError::InvalidParameter`] (velocity and acceleration limits, convergence threshold, desired depth),
     /// [`ServoError::UnsupportedDepthSource`], [`ServoError::MissingControlPeriod`], and the models' errors (a desired
     /// corner that does not undistort, a feature undefined on the desired image, invalid gains, `μ`, `κ`, `ρ`,
     /// controller or depth parameters).
@@ -201,12 +211,28 @@ impl<const N: usize> VisualServo<N> {
         {
             return Err(invalid("max_joint_velocity", *v, "> 0 (or +∞)"));
         }
+        if let Some(a) = config
+            .max_joint_acceleration
+            .iter()
+            .find(|a| a.is_nan() || **a <= 0.0)
+        {
+            return Err(invalid(
+                "max_joint_acceleration",
+                *a,
+                "> 0 (rad/s², m/s²; or +∞)",
+            ));
+        }
         let e = config.convergence_error;
         if !(e.is_finite() && e > 0.0) {
             return Err(invalid("convergence_error", e, "finite and > 0"));
         }
         if config.depth == DepthSource::PreviousPlane {
             return Err(ServoError::UnsupportedDepthSource);
+        }
+        if let Some(period) = config.control_period_s {
+            if !(period.is_finite() && period > 0.0 && period <= 1.0) {
+                return Err(invalid("control_period_s", period, "in (0, 1] s"));
+            }
         }
         let bounded_law = config.method.bounded_law(config.controller.hard_limit_rule);
         let full_method = config.method == ServoMethod::FullMethod;
@@ -222,8 +248,13 @@ impl<const N: usize> VisualServo<N> {
                     *config.chain.upper_limits(),
                     config.activation_ratio,
                 )?;
-                let bounds = SnsBounds::new(limits, config.max_joint_velocity, period)
+                let mut bounds = SnsBounds::new(limits, config.max_joint_velocity, period)
                     .map_err(|e| ServoError::Law(e.into()))?;
+                if config.max_joint_acceleration.iter().any(|a| a.is_finite()) {
+                    bounds = bounds
+                        .with_max_acceleration(config.max_joint_acceleration)
+                        .map_err(|e| ServoError::Law(e.into()))?;
+                }
                 Some((law, bounds))
             }
         };
@@ -335,6 +366,8 @@ impl<const N: usize> VisualServo<N> {
             target: config.target,
             desired_points,
             max_velocity: config.max_joint_velocity,
+            max_acceleration: config.max_joint_acceleration,
+            longest_period: config.control_period_s.unwrap_or(0.0),
             adaptive: config.adaptive_gain,
             convergence_error: config.convergence_error,
             start_time: None,
@@ -348,6 +381,8 @@ impl<const N: usize> VisualServo<N> {
                 unscaled_velocity: JointVector::zeros(),
                 scale: 1.0,
                 scaled: false,
+                acceleration_scale: 1.0,
+                stopping_clamp: false,
                 error_norm: f64::NAN,
                 task_errors: [f64::NAN; MAX_TASKS],
                 task_gains,

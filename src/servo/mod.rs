@@ -48,7 +48,11 @@
 //! 5. **Saturation**: the velocity is scaled uniformly, `q̇_sent = s q̇` with `s = min(1, min_i q̇_i^max / |q̇_i|)`, so
 //!    every joint keeps within its limit and the direction is kept; `q̇_sent` is fed back to the controller
 //!    ([`StackController::set_sent_velocity`]), so the next stack change blends from what the robot received
-//!    ([D1](crate::theory#d1)): continuity holds for the robot, not for a velocity it never got.
+//!    ([D1](crate::theory#d1)): continuity holds for the robot, not for a velocity it never got. With acceleration
+//!    limits ([`ServoConfig::max_joint_acceleration`]), the braking keeps the distance the limited deceleration needs
+//!    to stop, and only the fraction `σ` of the change from the last velocity sent that keeps every
+//!    `|Δq̇_i| ≤ a_i Δt` is sent (`Δt` since the last accepted period), each joint still within its stopping distance
+//!    ([D31](crate::theory#d31)); that is what is fed back.
 //!
 //! A step allocates nothing on the heap once built, with three exceptions outside the steady state: a removal copies
 //! its report (the dominant cost's name, every task's criteria) into the controller's event log; the log grows beyond
@@ -105,6 +109,9 @@ pub struct VisualServo<const N: usize> {
     target: RectangleTarget,
     desired_points: [ImagePoint; 4],
     max_velocity: JointVector<N>,
+    max_acceleration: JointVector<N>,
+    /// [`ServoConfig::control_period_s`] (0 when not given): the longest hold the stopping distance assumes.
+    longest_period: f64,
     adaptive: Option<AdaptiveGain>,
     convergence_error: f64,
     /// Time of the first accepted period (s); the controller runs on `time − start`.

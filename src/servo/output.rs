@@ -10,15 +10,26 @@ use nalgebra::Vector6;
 pub struct ServoOutput<const N: usize> {
     /// The joint velocity to send (rad/s, m/s): the controller's, scaled so that every `|q̇_i| ≤ q̇_i^max` and, near a
     /// hard limit, every joint moving towards it keeps `|q̇_i| ≤ ξ d_i` (the braking of [D25](crate::theory#d25),
-    /// [`crate::controller::ControllerParameters::braking_rate`]).
+    /// [`crate::controller::ControllerParameters::braking_rate`]); with acceleration limits, only the fraction
+    /// [`Self::acceleration_scale`] of the change from the last velocity sent ([D31](crate::theory#d31)).
     pub velocity: JointVector<N>,
     /// The controller's velocity before scaling.
     pub unscaled_velocity: JointVector<N>,
-    /// The uniform scale factor `s ∈ [0, 1]` (`velocity = s · unscaled_velocity`): the velocity limits' times the
-    /// braking's.
+    /// The uniform scale factor `s ∈ [0, 1]` (`velocity = s · unscaled_velocity` when the acceleration limits are
+    /// not active, [`Self::acceleration_scale`] `= 1`): the velocity limits' times the braking's.
     pub scale: f64,
     /// `true` when `s < 1` (a velocity limit or the braking was active).
     pub scaled: bool,
+    /// The fraction `σ ∈ [0, 1]` of the change towards `s · unscaled_velocity` sent this period:
+    /// `velocity = q̇_prev + σ (s · unscaled_velocity − q̇_prev)`, `q̇_prev` the velocity sent at the last accepted
+    /// period (zero before the first). `σ < 1` when an acceleration limit
+    /// ([`crate::servo::ServoConfig::max_joint_acceleration`]) was active ([D31](crate::theory#d31)); `1` without
+    /// limits.
+    pub acceleration_scale: f64,
+    /// `true` when, with the acceleration limits active, a joint was slowed on its own (not with the whole velocity)
+    /// to keep the speed from which it can still stop before its limit ([D31](crate::theory#d31),
+    /// [`crate::avoidance::JointLimits::clamp_to_stopping_distance`]): the change's direction then bends.
+    pub stopping_clamp: bool,
     /// `‖[e_1; …; e_n]‖` over every task, stacked or not (the reserve image points included).
     pub error_norm: f64,
     /// `‖e_i‖` of each task (the first [`Self::task_count`] entries).

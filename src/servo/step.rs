@@ -7,7 +7,7 @@ use super::{Corners, ServoError, ServoOutput, VisualServo, MAX_TASKS};
 use crate::camera::ImagePoint;
 use crate::depth::{assign_depths, DepthSource, Depths};
 use crate::feature::Observation;
-use crate::math::{first_non_finite, JointVector};
+use crate::math::{acceleration_limit_scale, first_non_finite, velocity_limit_scale, JointVector};
 use crate::task::{Task, TaskError};
 use crate::visual_task::VisualContext;
 use nalgebra::{Point2, Vector6};
@@ -126,7 +126,7 @@ impl<const N: usize> VisualServo<N> {
         let mut points = [ImagePoint::default(); 4];
         let result = depths
             .and_then(|depths| assign_depths(depths, measured, &mut points).map_err(depth_error))
-            .and_then(|()| self.control(time, &points, q));
+            .and_then(|()| self.control(time, dt, &points, q));
         if result.is_err() && !depth_updated {
             // Nothing changed (the controller restores its own memory on error).
             return result.map(|()| &self.output);
@@ -154,10 +154,12 @@ impl<const N: usize> VisualServo<N> {
         Ok(&self.output)
     }
 
-    /// Tasks, adaptive gains, controller step, saturation and feedback.
+    /// Tasks, adaptive gains, controller step, saturation and feedback; `dt` (s) is the time since the last accepted
+    /// period (0 at the first).
     fn control(
         &mut self,
         time: f64,
+        dt: f64,
         points: &[ImagePoint; 4],
         q: &JointVector<N>,
     ) -> Result<(), ServoError> {
@@ -187,19 +189,48 @@ impl<const N: usize> VisualServo<N> {
         let step =
             self.controller
                 .step(&self.law, &self.values, Some(cost), q, self.iteration, time)?;
-        // Uniform scaling into the velocity limits, then the braking before a hard limit (D25): the direction is kept.
+        // Uniform scaling into the velocity limits, then the braking before a hard limit (D25), with the stopping
+        // distance the acceleration limits need (D31): the direction is kept.
         let unscaled = step.velocity;
         let braking_rate = self.controller.parameters().braking_rate;
-        let scale = self
-            .limits
-            .sent_velocity_scale(q, &unscaled, &self.max_velocity, braking_rate);
-        let velocity = unscaled * scale;
+        // The stopping distance assumes the velocity is held for the longest period the loop may take (D31).
+        let hold = dt.max(self.longest_period);
+        let limit = velocity_limit_scale(&unscaled, &self.max_velocity);
+        let braking = self.limits.braking_scale_under_acceleration(
+            q,
+            &(unscaled * limit),
+            braking_rate,
+            &self.max_acceleration,
+            hold,
+        );
+        let scale = limit * braking;
+        let target = unscaled * scale;
+        // The change from the velocity sent last, scaled uniformly into the acceleration limits (D31); then each joint
+        // within the speed from which it can still stop before its limit, which the bound of the last period leaves
+        // reachable within the joint's acceleration limit (the direction of the change bends only there).
+        let previous = self.output.velocity;
+        let fraction = acceleration_limit_scale(&previous, &target, &self.max_acceleration, dt);
+        let (velocity, clamped) = if fraction >= 1.0 {
+            (target, false)
+        } else {
+            let mut velocity = previous + (target - previous) * fraction;
+            let clamped = self.limits.clamp_to_stopping_distance(
+                q,
+                &mut velocity,
+                braking_rate,
+                &self.max_acceleration,
+                hold,
+            );
+            (velocity, clamped)
+        };
         self.controller.set_sent_velocity(&velocity)?;
         let output = &mut self.output;
         output.velocity = velocity;
         output.unscaled_velocity = unscaled;
         output.scale = scale;
         output.scaled = scale < 1.0;
+        output.acceleration_scale = fraction;
+        output.stopping_clamp = clamped;
         output.task_errors = task_errors;
         output.task_gains = task_gains;
         output.error_norm = task_errors.iter().map(|e| e * e).sum::<f64>().sqrt();

@@ -44,6 +44,7 @@ mod scenario_fields;
 mod scenario_generate;
 mod scenarios;
 mod servo;
+mod servo_acceleration;
 mod servo_methods;
 mod sns;
 mod square_target;

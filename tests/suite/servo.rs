@@ -87,7 +87,7 @@ impl Plant {
         }
     }
 
-    fn time(&self) -> f64 {
+    pub(crate) fn time(&self) -> f64 {
         self.iteration as f64 * self.period
     }
 
@@ -98,7 +98,7 @@ impl Plant {
     }
 
     /// The four corners as the camera measures them (px, distorted).
-    fn pixels(&mut self) -> Corners {
+    pub(crate) fn pixels(&mut self) -> Corners {
         let camera = self.camera;
         self.normalized().map(|p| Some(camera.pixel_of(p.x, p.y)))
     }
@@ -108,7 +108,7 @@ impl Plant {
     }
 
     /// Moves the robot by `velocity` over one period.
-    fn apply(&mut self, velocity: &JointVector<6>) {
+    pub(crate) fn apply(&mut self, velocity: &JointVector<6>) {
         self.q += velocity * self.period;
         self.iteration += 1;
     }

@@ -277,7 +277,10 @@ fn the_velocity_box_follows_the_limits() {
         (lo[2] + 0.2).abs() < 1e-9 && (hi[2] - 199.8).abs() < 1e-6,
         "{lo} {hi}"
     );
-    let accelerating = bounds.with_max_acceleration(Vector3::repeat(2.0)).unwrap();
+    let accelerating = bounds
+        .clone()
+        .with_max_acceleration(Vector3::repeat(2.0))
+        .unwrap();
     let previous = Vector3::new(0.0, 0.3, 0.0);
     accelerating
         .velocity_box(&q, &previous, &mut lo, &mut hi)
@@ -291,6 +294,20 @@ fn the_velocity_box_follows_the_limits() {
         .velocity_box(&q, &fast, &mut lo, &mut hi)
         .unwrap();
     assert!(lo[0] == hi[0] && hi[0] < 0.1, "{lo} {hi}");
+    // +∞ on joint 1: that joint's box is the one without acceleration limits, the others keep theirs.
+    let (mut free_lo, mut free_hi) = (Vector3::zeros(), Vector3::zeros());
+    bounds
+        .velocity_box(&q, &previous, &mut free_lo, &mut free_hi)
+        .unwrap();
+    let partly = bounds
+        .clone()
+        .with_max_acceleration(Vector3::new(2.0, f64::INFINITY, 2.0))
+        .unwrap();
+    partly
+        .velocity_box(&q, &previous, &mut lo, &mut hi)
+        .unwrap();
+    assert_eq!((lo[1], hi[1]), (free_lo[1], free_hi[1]));
+    assert!((lo[0] + 0.02).abs() < 1e-12 && (hi[0] - 0.02).abs() < 1e-12);
 }
 
 /// A configuration past its upper limit: the box asks the joint back (both bounds negative), never an empty box.
@@ -390,7 +407,7 @@ fn bad_bounds_and_inputs_are_clear_errors() {
         );
     }
     let bounds = SnsBounds::new(limits.clone(), v, 0.01).unwrap();
-    for value in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+    for value in [0.0, -1.0, f64::NAN, f64::NEG_INFINITY] {
         let err = bounds
             .clone()
             .with_max_acceleration(Vector3::new(value, 1.0, 1.0))
