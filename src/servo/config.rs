@@ -131,8 +131,8 @@ pub struct ServoConfig<const N: usize> {
     pub depth: DepthSource,
     /// `q̇_i^max` per joint (rad/s for revolute, m/s for prismatic joints, > 0; `+∞`: no limit). Default: no limit.
     pub max_joint_velocity: JointVector<N>,
-    /// `a_i`, the largest change of joint `i`'s velocity per second (rad/s² for revolute, m/s² for prismatic joints,
-    /// > 0; `+∞`: no limit). Default: no limit (the paper's runs and the README's figures are without); an industrial
+    /// `a_i`, the largest change of joint `i`'s velocity per second (`> 0`, rad/s² for revolute, m/s² for prismatic
+    /// joints; `+∞`: no limit). Default: no limit (the paper's runs and the README's figures are without); an industrial
     /// arm's controller allows a few rad/s² (2 to 5) and about 1 m/s² on a gantry's axes. The change from the last
     /// velocity sent is scaled uniformly so that `|Δq̇_i| ≤ a_i Δt`, `Δt` the time since the last accepted period, and
     /// the braking of [D25](crate::theory#d25) keeps the stopping distance ([D31](crate::theory#d31)); SNS and the QP

@@ -341,7 +341,7 @@ fn invalid_acceleration_limits_are_named_errors_and_limited_periods_allocate_not
     config.max_joint_acceleration[0] = f64::INFINITY;
     let mut servo = VisualServo::new(config).unwrap();
     let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, PERIOD);
-    let mut step = |servo: &mut VisualServo<6>, plant: &mut Plant| {
+    let step = |servo: &mut VisualServo<6>, plant: &mut Plant| {
         let pixels = plant.pixels();
         let output = *servo.step(plant.time(), &pixels, &plant.q).unwrap();
         plant.apply(&output.velocity);
