@@ -162,26 +162,14 @@ impl<const N: usize> JointLimits<N> {
     /// most the factor `1 − ξ Δt` per period and the limit is approached, never crossed. A joint already past a limit
     /// and moving further out gives `s = 0`. Unlimited joints and a rate of `+∞` never brake.
     pub fn braking_scale(&self, q: &JointVector<N>, velocity: &JointVector<N>, rate: f64) -> f64 {
-        if rate == f64::INFINITY {
-            return 1.0;
-        }
-        let mut scale: f64 = 1.0;
-        for joint in 0..N {
-            let speed = velocity[joint];
-            let distance = if speed > 0.0 {
-                self.upper[joint] - q[joint]
-            } else if speed < 0.0 {
-                q[joint] - self.lower[joint]
-            } else {
-                continue;
-            };
-            // An unlimited joint's distance is +∞: no bound.
-            let allowed = rate * distance.max(0.0);
-            if allowed < speed.abs() {
-                scale = scale.min(allowed / speed.abs());
-            }
-        }
-        scale
+        // With no acceleration limit, `braking_speed` is `ξ d_i` (an unlimited joint's `+∞`): the same loop.
+        self.braking_scale_under_acceleration(
+            q,
+            velocity,
+            rate,
+            &JointVector::repeat(f64::INFINITY),
+            0.0,
+        )
     }
 
     /// The braking of [D25](crate::theory#d25) under acceleration limits ([D31](crate::theory#d31)): the uniform scale
