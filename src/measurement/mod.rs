@@ -19,6 +19,9 @@
 //! 4. **Between frames**, [`BetweenFrames::Hold`] keeps the last delivered points, [`BetweenFrames::Predict`] moves
 //!    them with the point interaction rows \[M28\] and the known camera twist `v` applied over the last period `Δt`:
 //!    `x ← x + Δt L_x(x, y, 1/Ẑ) v`, `y ← y + Δt L_y(x, y, 1/Ẑ) v`, with the depths `Ẑ` of the caller's depth source.
+//!    The [`FeatureObserver`] (`observer`) does better: it predicts the same way and corrects at each frame against
+//!    the estimate of the frame's capture time, weighing the noise against the prediction's error
+//!    ([D32](crate::theory#d32)); a simulation runs it on the delivered frames.
 //!
 //! The hand-eye (camera mount) error is a perturbation of `eMc` between the true and the believed robot:
 //! [`perturbed_mount`] and [`perturbed_eye_in_hand`] draw it from a seed with exact magnitudes.
@@ -31,6 +34,7 @@
 mod error;
 mod hand_eye;
 mod model;
+mod observer;
 mod parameters;
 #[cfg(test)]
 mod tests;
@@ -38,6 +42,9 @@ mod tests;
 pub use error::MeasurementError;
 pub use hand_eye::{perturbed_eye_in_hand, perturbed_mount};
 pub use model::{Measurement, MeasurementModel};
+pub use observer::{
+    FeatureObserver, ObserverParameters, ObserverStep, OBSERVED_POINTS, OBSERVER_HISTORY,
+};
 pub use parameters::{BetweenFrames, MeasurementParameters};
 
 /// Largest `latency_frames` accepted (the ring buffer holds `latency_frames + 1` frames).

@@ -1,7 +1,7 @@
 //! The parameters of the measurement model ([`MeasurementParameters`]: noise, frame rate, latency, what to do between
 //! frames, intrinsics, hand-eye and lens errors, filter), their exact default and their validation.
 
-use super::{MeasurementError, MAX_LATENCY_FRAMES};
+use super::{MeasurementError, ObserverParameters, MAX_LATENCY_FRAMES};
 use crate::bounds::{PIXEL_NOISE_PX, RATE_HZ};
 use crate::camera::{BrownConrady, CameraError};
 
@@ -50,6 +50,10 @@ pub struct MeasurementParameters {
     /// `x_f ← x_f + (1 − e^{−Δt/τ}) (x − x_f)` on the normalised coordinates, started at the first points. It trades
     /// pixel noise for a lag of about `τ` (which the depth estimator, fed with the filtered points, also sees).
     pub filter_time_constant_s: f64,
+    /// The controller's feature observer ([`super::FeatureObserver`], [D32](crate::theory#d32)): the points predicted
+    /// from the sent twist and corrected at each frame by a Kalman gain. It replaces `between_frames` and the filter
+    /// (both must keep their defaults). `None`, the default: no observer.
+    pub observer: Option<ObserverParameters>,
 }
 
 impl Default for MeasurementParameters {
@@ -66,6 +70,7 @@ impl Default for MeasurementParameters {
             hand_eye_rotation_deg: 0.0,
             distortion_coefficients: [0.0; 5],
             filter_time_constant_s: 0.0,
+            observer: None,
         }
     }
 }
@@ -137,6 +142,16 @@ impl MeasurementParameters {
                 "in [0, 3600] s",
             );
         }
+        if let Some(observer) = &self.observer {
+            observer.validate()?;
+            if self.filter_time_constant_s > 0.0 || self.between_frames != BetweenFrames::Hold {
+                return invalid(
+                    "observer",
+                    self.filter_time_constant_s,
+                    "alone: the observer replaces between_frames = \"predict\" and filter_time_constant_s",
+                );
+            }
+        }
         let [k1, k2, p1, p2, k3] = self.distortion_coefficients;
         if let Err(CameraError::InvalidDistortion { value, .. }) =
             BrownConrady::new(k1, k2, p1, p2, k3)
@@ -195,5 +210,39 @@ mod tests {
         let empty: MeasurementParameters = toml::from_str("").unwrap();
         assert!(empty.is_exact());
         assert!(toml::from_str::<MeasurementParameters>("pixel_noise = 2.0").is_err());
+    }
+
+    /// The observer reads from `[observer]`, is checked, and refuses the filter and the prediction it replaces.
+    #[test]
+    fn observer_is_read_checked_and_alone() {
+        let parsed: MeasurementParameters =
+            toml::from_str("[observer]\npixel_noise_px = 1.5\nlatency_s = 0.03\n").unwrap();
+        let observer = parsed.observer.unwrap();
+        assert_eq!((observer.pixel_noise_px, observer.latency_s), (1.5, 0.03));
+        assert_eq!(observer.memory_s, ObserverParameters::default().memory_s);
+        assert!(!parsed.is_exact());
+        assert!(parsed.validate(0.002).is_ok());
+        let name = |p: MeasurementParameters| match p.validate(0.002) {
+            Err(MeasurementError::InvalidParameter { name, .. }) => name,
+            other => panic!("{other:?}"),
+        };
+        let filtered = MeasurementParameters {
+            filter_time_constant_s: 0.2,
+            ..parsed
+        };
+        assert_eq!(name(filtered), "observer");
+        let predicted = MeasurementParameters {
+            between_frames: BetweenFrames::Predict,
+            ..parsed
+        };
+        assert_eq!(name(predicted), "observer");
+        let negative = MeasurementParameters {
+            observer: Some(ObserverParameters {
+                latency_s: -0.1,
+                ..observer
+            }),
+            ..parsed
+        };
+        assert_eq!(name(negative), "observer.latency_s");
     }
 }

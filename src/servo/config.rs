@@ -12,6 +12,7 @@ use crate::law::sns::SnsBounds;
 use crate::law::{BoundedLaw, ControlLaw};
 use crate::linalg::VelocityInverse;
 use crate::math::JointVector;
+use crate::measurement::{FeatureObserver, ObserverParameters};
 use crate::robot::{KinematicsWorkspace, SerialChain};
 use crate::stack::StackParameters;
 use crate::target::RectangleTarget;
@@ -152,6 +153,13 @@ pub struct ServoConfig<const N: usize> {
     /// ([D31](crate::theory#d31)): a velocity is assumed held for at most `max(Δt, control_period_s)`, `Δt` the last
     /// period, so give the longest hold (a bad frame held adds a period). Default `None`.
     pub control_period_s: Option<f64>,
+    /// The feature observer ([D32](crate::theory#d32)): between camera frames the corners are predicted from the
+    /// velocity sent (through `L_x` and the camera Jacobian), and each new frame corrects the prediction against the
+    /// estimate of its capture time (`latency_s` before the period it arrives in) with a Kalman gain that weighs the
+    /// detector's noise against the prediction's error. The law then sees a smooth signal, and the noise of a still
+    /// camera is averaged over up to `memory_s`. Default `None`: each period uses the corners given (a camera slower
+    /// than the loop repeats its frame).
+    pub observer: Option<ObserverParameters>,
     /// Whether the centroid task (the first) is never removed ([D6](crate::theory#d6)): it keeps the target in the
     /// image. Default `true`.
     pub protect_centroid: bool,
@@ -185,6 +193,7 @@ impl<const N: usize> ServoConfig<N> {
             convergence_error: 1e-4,
             method: ServoMethod::FullMethod,
             control_period_s: None,
+            observer: None,
             protect_centroid: true,
         }
     }
@@ -346,6 +355,11 @@ impl<const N: usize> VisualServo<N> {
             controller = controller.with_bounded_law(law, bounds)?;
         }
         let estimator = config.depth.estimator(4)?;
+        let intrinsics = &config.camera.intrinsics;
+        let observer = config
+            .observer
+            .map(|parameters| FeatureObserver::new(parameters, intrinsics.fx(), intrinsics.fy()))
+            .transpose()?;
         let task_count = tasks.len();
         let mut task_gains = [0.0; MAX_TASKS];
         for (g, v) in task_gains.iter_mut().zip(&values) {
@@ -363,6 +377,7 @@ impl<const N: usize> VisualServo<N> {
             kinematics: KinematicsWorkspace::new(),
             depth: config.depth,
             estimator,
+            observer,
             target: config.target,
             desired_points,
             max_velocity: config.max_joint_velocity,

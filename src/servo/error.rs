@@ -74,6 +74,11 @@ pub enum ServoError {
         /// Image height (px).
         height: f64,
     },
+    /// The feature observer's parameters are out of range (at construction, [`ServoConfig::observer`]).
+    ///
+    /// [`ServoConfig::observer`]: super::ServoConfig::observer
+    #[error(transparent)]
+    Observer(#[from] crate::measurement::MeasurementError),
     /// A pixel could not be undistorted (beyond the lens model's invertible radius).
     #[error("corner {index}: {source}")]
     Undistortion {

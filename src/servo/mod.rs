@@ -40,6 +40,9 @@
 //!    new frame arrives — a frame is *new* when one corner differs from the previous accepted call's (a camera slower
 //!    than the control loop repeats its last frame), with the mean camera twist `cVe eJe(q) q̇_sent` over the periods
 //!    since the previous frame.
+//!    With a [`ServoConfig::observer`] ([D32](crate::theory#d32)) the corners the next steps see are the observer's
+//!    estimate: predicted from the twist sent over the last period, corrected by a new frame against the estimate of
+//!    its capture time.
 //! 3. **Tasks** (`e_i`, `L_i`, `J_i = L_i cVe eJe(q)`, [\[M42\]](crate::theory#m42)) on the observation; with an
 //!    [`AdaptiveGain`], each task's gain becomes `λ(‖e_i‖∞)`.
 //! 4. One [`StackController::step`] with the joint-limit cost ([\[M19\]](crate::theory#m19)); the centroid task is never
@@ -78,6 +81,7 @@ use crate::controller::StackController;
 use crate::depth::{DepthEstimator, DepthSource};
 use crate::law::ControlLaw;
 use crate::math::JointVector;
+use crate::measurement::FeatureObserver;
 use crate::robot::{KinematicsWorkspace, SerialChain};
 use crate::target::RectangleTarget;
 use crate::task::TaskValue;
@@ -105,6 +109,8 @@ pub struct VisualServo<const N: usize> {
     kinematics: KinematicsWorkspace<N>,
     depth: DepthSource,
     estimator: Option<DepthEstimator>,
+    /// The feature observer ([`ServoConfig::observer`]).
+    observer: Option<FeatureObserver>,
     /// The target model, for [`DepthSource::TargetPose`].
     target: RectangleTarget,
     desired_points: [ImagePoint; 4],
@@ -150,5 +156,11 @@ impl<const N: usize> VisualServo<N> {
     /// The joint-limit cost.
     pub fn limits(&self) -> &JointLimits<N> {
         &self.limits
+    }
+
+    /// The feature observer ([`ServoConfig::observer`]): its estimate of the corners (normalised) is what the tasks
+    /// were evaluated on at the last accepted period.
+    pub fn observer(&self) -> Option<&FeatureObserver> {
+        self.observer.as_ref()
     }
 }

@@ -112,8 +112,19 @@ impl<const N: usize> VisualServo<N> {
                 .map_err(depth_error)?;
             depth_updated = true;
         }
+        // The observer's estimate (D32) from the twist sent since the last period and that period's depths; the tasks
+        // and the target's pose see it, the depth estimator the frames themselves.
+        let observed = self.observer.as_ref().and_then(|observer| {
+            observer.propose(
+                time_s,
+                &self.output.camera_twist,
+                &self.output.depths,
+                new_frame.then_some(measured),
+            )
+        });
+        let seen = observed.as_ref().map_or(measured, |step| step.points());
         let plane = match self.depth {
-            DepthSource::TargetPose => Some(self.target.plane_from_image(measured)),
+            DepthSource::TargetPose => Some(self.target.plane_from_image(seen)),
             _ => None,
         };
         let depths = match (&self.estimator, self.depth, &plane) {
@@ -125,7 +136,7 @@ impl<const N: usize> VisualServo<N> {
         };
         let mut points = [ImagePoint::default(); 4];
         let result = depths
-            .and_then(|depths| assign_depths(depths, measured, &mut points).map_err(depth_error))
+            .and_then(|depths| assign_depths(depths, seen, &mut points).map_err(depth_error))
             .and_then(|()| self.control(time, dt, &points, q));
         if result.is_err() && !depth_updated {
             // Nothing changed (the controller restores its own memory on error).
@@ -143,6 +154,9 @@ impl<const N: usize> VisualServo<N> {
         self.start_time = Some(start);
         self.last_time = time_s;
         self.last_points = *measured;
+        if let (Some(observer), Some(step)) = (self.observer.as_mut(), &observed) {
+            observer.commit(step);
+        }
         result?;
         let output = &mut self.output;
         output.new_frame = new_frame;

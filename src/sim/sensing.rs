@@ -6,7 +6,8 @@ use crate::camera::{EyeInHand, ImagePoint};
 use crate::depth::{assign_depths, DepthError, DepthEstimator, DepthSource, Depths};
 use crate::math::{JointVector, KinematicJacobian};
 use crate::measurement::{
-    perturbed_eye_in_hand, MeasurementError, MeasurementModel, MeasurementParameters,
+    perturbed_eye_in_hand, FeatureObserver, MeasurementError, MeasurementModel,
+    MeasurementParameters,
 };
 use crate::target::{RectangleTarget, TargetPlane};
 use crate::visual_task::VisualTask;
@@ -58,6 +59,8 @@ pub(super) struct SensingState<'a> {
     plane: Option<TargetPlane>,
     target: RectangleTarget,
     measured: [Point2<f64>; 4],
+    /// The controller's feature observer, when the measurement has one (D32).
+    observer: Option<FeatureObserver>,
     pub(super) points: [ImagePoint; 4],
 }
 
@@ -68,9 +71,9 @@ impl<'a> SensingState<'a> {
         period: f64,
     ) -> Result<Self, SimError> {
         let depth_error = |e: DepthError| SimError::Measurement(MeasurementError::Depth(e));
+        let model = MeasurementModel::new(&sensing.measurement, scene.intrinsics, 4, period)?;
         Ok(Self {
             sensing,
-            model: MeasurementModel::new(&sensing.measurement, scene.intrinsics, 4, period)?,
             believed: perturbed_eye_in_hand(&scene.mount, &sensing.measurement)?,
             estimator: match sensing.depth {
                 Some(source) => source.estimator(4).map_err(depth_error)?,
@@ -82,6 +85,15 @@ impl<'a> SensingState<'a> {
             plane: None,
             target: scene.target,
             measured: [Point2::origin(); 4],
+            observer: sensing
+                .measurement
+                .observer
+                .map(|parameters| {
+                    let nominal = model.nominal_camera().intrinsics;
+                    FeatureObserver::new(parameters, nominal.fx(), nominal.fy())
+                })
+                .transpose()?,
+            model,
             points: [ImagePoint::default(); 4],
         })
     }
@@ -116,6 +128,15 @@ impl<'a> SensingState<'a> {
                 Err(other) => return Err(other.to_string()),
             }
             (self.twist_sum, self.twist_time) = (Vector6::zeros(), 0.0);
+        }
+        if let Some(observer) = &mut self.observer {
+            // The observer's estimate from the twist sent over the last period and the last period's depths (D32).
+            let depths = self.points.map(|p| p.depth);
+            let frame = measurement.fresh.then_some(&self.measured);
+            if let Some(step) = observer.propose(time, &self.believed_twist, &depths, frame) {
+                observer.commit(&step);
+                self.measured = *step.points();
+            }
         }
         let from_corners = self.sensing.depth == Some(DepthSource::TargetPose);
         if from_corners {

@@ -46,6 +46,7 @@ mod scenarios;
 mod servo;
 mod servo_acceleration;
 mod servo_methods;
+mod servo_observer;
 mod sns;
 mod square_target;
 mod stack_properties;
