@@ -32,8 +32,8 @@ fn full_method_reaches_the_goal_pose_with_depths_from_the_measured_corners() {
     reaches_the_goal_pose(&scenario);
 }
 
-/// ±2 px of pixel noise on top, depths from the measured corners, the 0.2 s filter of the points, the side ratios and
-/// a gain of 0.03 s⁻¹ at the goal held 45 s (`paper_afma6_noisy_camera.toml`): from the scenario's start and from
+/// ±2 px of pixel noise on top, depths from the measured corners, the feature observer (D32), the side ratios and a
+/// gain of 0.03 s⁻¹ at the goal held 45 s (`paper_afma6_noisy_camera.toml`): from the scenario's start and from
 /// mild starts of the study, the full method settles within 5 mm / 0.5° of the goal pose, inside the limits.
 #[test]
 fn full_method_reaches_the_goal_pose_through_a_noisy_camera() {
