@@ -19,7 +19,7 @@
 
 use super::{checked_cost, dead_band, Cost, CostError};
 use crate::bounds::JOINT_POSITION;
-use crate::math::{first_non_finite, velocity_limit_scale, JointVector};
+use crate::math::{first_non_finite, JointVector};
 
 /// The largest speed (m/s or rad/s) towards a limit at distance `distance` (m or rad; clamped at 0) that the braking
 /// of [D25](crate::theory#d25) at rate `rate` (`ξ`, s⁻¹) allows when the velocity may change by at most
@@ -263,20 +263,6 @@ impl<const N: usize> JointLimits<N> {
             }
         }
         marked
-    }
-
-    /// The scale of the velocity sent to the joints: `q̇` scaled uniformly into the robot's velocity limits
-    /// (`|q̇_i| ≤ q̇_i^max`, [`velocity_limit_scale`]), then braked before the hard limits ([`Self::braking_scale`] at
-    /// the rate `braking_rate`, s⁻¹; `+∞`: no braking). `s ∈ [0, 1]`, sent as `s q̇`.
-    pub fn sent_velocity_scale(
-        &self,
-        q: &JointVector<N>,
-        velocity: &JointVector<N>,
-        max_velocity: &JointVector<N>,
-        braking_rate: f64,
-    ) -> f64 {
-        let limit = velocity_limit_scale(velocity, max_velocity);
-        limit * self.braking_scale(q, &(velocity * limit), braking_rate)
     }
 
     /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the
