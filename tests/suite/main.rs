@@ -46,6 +46,7 @@ mod scenarios;
 mod servo;
 mod servo_acceleration;
 mod servo_methods;
+mod sim_acceleration;
 mod sns;
 mod square_target;
 mod stack_properties;
