@@ -98,6 +98,16 @@ pub const TRANSITION_GAIN_PER_S: PhysicalRange = PhysicalRange {
     text: "finite, within [1e-3, 1e6] s⁻¹",
 };
 
+/// Finite joint acceleration limits (rad/s², m/s²) of a simulation (`+∞`, no limit, is checked apart). A nanometre per
+/// second squared takes eleven days to reach a millimetre per second; a million per second squared is a hundred
+/// thousand g, far beyond any robot, and far below where `a²Δt²` in the stopping distance of
+/// [`braking_speed`](crate::avoidance::braking_speed) leaves the range of `f64`.
+pub const ACCELERATION_PER_S2: PhysicalRange = PhysicalRange {
+    low: 1e-9,
+    high: 1e6,
+    text: "within [1e-9, 1e6] (rad/s², m/s²), or +∞ for no limit",
+};
+
 /// Durations (s): horizons, dwell times, timeouts. A day.
 pub const DURATION_S: PhysicalRange = PhysicalRange {
     low: 0.0,

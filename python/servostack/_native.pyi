@@ -114,6 +114,7 @@ class VisualServo:
         activation_ratio: float = 0.1,
         transition_gain: Optional[float] = None,
         max_joint_velocity: Optional[_Vector] = None,
+        max_joint_acceleration: Optional[_Vector] = None,
         convergence_error: float = 1e-4,
         controller: Optional[Mapping[str, Any]] = None,
         protect_centroid: bool = True,

@@ -13,7 +13,6 @@ use servostack::camera::CalibratedCamera;
 use servostack::controller::{ControllerParameters, StackEvent};
 use servostack::depth::DepthSource;
 use servostack::math::JointVector;
-use servostack::robot::JointKind;
 use servostack::scenario::{with_joint_count, Experiment, ForJointCount, MAX_JOINTS};
 use servostack::servo::{
     Corners, DesiredImage, ServoConfig, ServoError as RustServoError, ServoMethod, TaskChoice,
@@ -122,6 +121,8 @@ struct Parts {
     depth: DepthSource,
     /// Per joint; `None`: no limit.
     max_joint_velocity: Option<Vec<f64>>,
+    /// Per joint; `None`: no limit.
+    max_joint_acceleration: Option<Vec<f64>>,
     convergence_error: f64,
     protect_centroid: bool,
     method: ServoMethod,
@@ -146,16 +147,24 @@ impl Parts {
         config.method = self.method;
         config.control_period_s = self.control_period_s;
         if let Some(limits) = self.max_joint_velocity {
-            if limits.len() != N {
-                return Err(PyValueError::new_err(format!(
-                    "max_joint_velocity: {} values for a robot with {N} joints",
-                    limits.len()
-                )));
-            }
-            config.max_joint_velocity = JointVector::from_column_slice(&limits);
+            config.max_joint_velocity = per_joint(&limits, "max_joint_velocity")?;
+        }
+        if let Some(limits) = self.max_joint_acceleration {
+            config.max_joint_acceleration = per_joint(&limits, "max_joint_acceleration")?;
         }
         Ok(config)
     }
+}
+
+/// One value per joint of a robot with `N` joints, or a `ValueError` naming the parameter `name`.
+fn per_joint<const N: usize>(values: &[f64], name: &str) -> PyResult<JointVector<N>> {
+    if values.len() != N {
+        return Err(PyValueError::new_err(format!(
+            "{name}: {} values for a robot with {N} joints",
+            values.len()
+        )));
+    }
+    Ok(JointVector::from_column_slice(values))
 }
 
 /// [`RustServo::new`] for a robot of a joint count known at run time.
@@ -189,7 +198,7 @@ impl ForJointCount for FromScenario<'_> {
 }
 
 /// The façade's configuration of the full method of `scenario` on its `experiment`: the scenario's camera, target,
-/// desired pose, gains, `κ`, `ρ`, `μ`, controller, velocity limits and convergence threshold, with the depths from
+/// desired pose, gains, `κ`, `ρ`, `μ`, controller, velocity and acceleration limits and convergence threshold, with the depths from
 /// the target's pose seen in the image (the simulation's true depths, up to rounding). What the façade does not model
 /// (obstacles, a visibility cost, camera errors, damping, a priori depths, an adaptive gain) is an error.
 fn scenario_config<const N: usize>(
@@ -213,6 +222,8 @@ fn scenario_config<const N: usize>(
         )));
     }
     let scene = &experiment.scene;
+    // The robot's velocity and acceleration limits per joint, as the simulation takes them.
+    let motion = settings.simulation.motion_limits(scene.chain());
     let camera = CalibratedCamera {
         intrinsics: *scene.intrinsics(),
         distortion: experiment.lens,
@@ -231,19 +242,8 @@ fn scenario_config<const N: usize>(
         activation_ratio: settings.avoidance.activation_ratio,
         controller: settings.controller,
         depth: settings.depth.unwrap_or(DepthSource::TargetPose),
-        max_joint_velocity: Some(
-            scene
-                .chain()
-                .joints()
-                .iter()
-                .map(|joint| match joint.kind() {
-                    JointKind::Prismatic => settings.simulation.max_prismatic_velocity_m_s,
-                    JointKind::Revolute | JointKind::Continuous => {
-                        settings.simulation.max_revolute_velocity_rad_s
-                    }
-                })
-                .collect(),
-        ),
+        max_joint_velocity: Some(motion.max_velocity.iter().copied().collect()),
+        max_joint_acceleration: Some(motion.max_acceleration.iter().copied().collect()),
         convergence_error: settings.simulation.convergence_error,
         protect_centroid: true,
         method: ServoMethod::FullMethod,
@@ -313,12 +313,14 @@ impl VisualServo {
     /// `"target_pose"`, a constant (m) or a dict. `controller`: the `[controller]` keys of a scenario file, as a
     /// dict. `method`: `"full_method"` (the paper's), `"sns"` (saturation in the null space) or `"hqp"` (the
     /// hierarchical QP cascade), the last two with `control_period` (s), the loop's period that sizes their box.
-    /// Every other parameter as `ServoConfig`'s field of the same name.
+    /// `max_joint_velocity` (rad/s, m/s) and `max_joint_acceleration` (rad/s², m/s²): one value per joint, `> 0`,
+    /// `inf` for none (default: no limit). Every other parameter as `ServoConfig`'s field of the same name.
     #[new]
     #[pyo3(signature = (
         robot, camera, target, desired_pose = None, *, desired_pixels = None, desired_depth = None,
         tasks = "sequence", gains = [0.5; 4], classical_gain = 0.5, depth = None, avoidance_gain = 10.0,
-        activation_ratio = 0.1, transition_gain = None, max_joint_velocity = None, convergence_error = 1e-4,
+        activation_ratio = 0.1, transition_gain = None, max_joint_velocity = None,
+        max_joint_acceleration = None, convergence_error = 1e-4,
         controller = None, protect_centroid = true, method = "full_method", control_period = None
     ))]
     #[allow(clippy::too_many_arguments)]
@@ -337,6 +339,7 @@ impl VisualServo {
         activation_ratio: f64,
         transition_gain: Option<f64>,
         max_joint_velocity: Option<&Bound<'_, PyAny>>,
+        max_joint_acceleration: Option<&Bound<'_, PyAny>>,
         convergence_error: f64,
         controller: Option<&Bound<'_, PyAny>>,
         protect_centroid: bool,
@@ -397,6 +400,9 @@ impl VisualServo {
             },
             max_joint_velocity: max_joint_velocity
                 .map(|v| crate::convert::vector(v, "max_joint_velocity"))
+                .transpose()?,
+            max_joint_acceleration: max_joint_acceleration
+                .map(|v| crate::convert::vector(v, "max_joint_acceleration"))
                 .transpose()?,
             convergence_error,
             protect_centroid,

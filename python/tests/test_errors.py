@@ -85,6 +85,11 @@ def test_bad_poses_and_parameters_are_value_errors(paper):
         ss.VisualServo(robot, camera, (0.2, 0.1), goal, convergence_error=-1.0)
     with pytest.raises(ValueError, match="max_joint_velocity: 2 values"):
         ss.VisualServo(robot, camera, (0.2, 0.1), goal, max_joint_velocity=[1.0, 1.0])
+    with pytest.raises(ValueError, match="max_joint_acceleration: 7 values"):
+        ss.VisualServo(robot, camera, (0.2, 0.1), goal, max_joint_acceleration=[1.0] * 7)
+    for bad in [0.0, -3.0, float("nan")]:
+        with pytest.raises(ss.ServoError, match="max_joint_acceleration"):
+            ss.VisualServo(robot, camera, (0.2, 0.1), goal, max_joint_acceleration=[1.0] * 5 + [bad])
     with pytest.raises(ValueError, match='method = "qp"'):
         ss.VisualServo(robot, camera, (0.2, 0.1), goal, method="qp")
     with pytest.raises(ss.ServoError, match="control_period"):

@@ -108,6 +108,35 @@ def test_python_servo_loop_makes_the_full_method_run(paper):
     np.testing.assert_allclose(q, run.q[-1], atol=1e-9)
 
 
+def test_acceleration_limits_of_the_scenario_reach_the_servo_and_keep_its_steps_within_them(paper):
+    """A scenario with an industrial arm's acceleration limits (1 m/s² on the Afma6's three prismatic axes, 3 rad/s² on
+    its revolute joints): from_scenario takes them, every velocity the servo sends changes by at most a_i Δt from the
+    one before, the limits act (the start from rest asks for more), and the servo loop makes the simulation's run."""
+    sections = paper.to_dict()
+    sections["simulation"]["max_prismatic_acceleration_m_s2"] = 1.0
+    sections["simulation"]["max_revolute_acceleration_rad_s2"] = 3.0
+    scenario = ss.Scenario.from_dict(sections)
+    run = scenario.run("full_method")
+    assert run.outcome == "converged"
+    world, servo = scenario.experiment(), ss.VisualServo.from_scenario(scenario)
+    q, dt = world.start, scenario.period
+    allowance = np.array([1.0, 1.0, 1.0, 3.0, 3.0, 3.0]) * dt
+    previous, largest = np.zeros(6), 0.0
+    for k in range(10_000):
+        v = servo.step(k * dt, world.corners(q), q)
+        if servo.converged:
+            break
+        ratio = np.max(np.abs(v - previous) / allowance)
+        assert ratio <= 1.0 + 1e-9, f"iteration {k}: {ratio}"
+        largest = max(largest, ratio)
+        previous = v
+        q = q + v * dt
+    assert servo.converged and largest > 0.99
+    assert k + 1 == run.iterations
+    assert story(servo.events) == story(run.events)
+    np.testing.assert_allclose(q, run.q[-1], atol=1e-6)
+
+
 def test_readme_first_loop_converges_after_15_9_s(repo):
     """The README's first loop (Rust) in Python: same models, same 100 Hz loop, the same printed time."""
     robot = ss.Robot.builtin("afma6")

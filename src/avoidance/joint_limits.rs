@@ -19,7 +19,7 @@
 
 use super::{checked_cost, dead_band, Cost, CostError};
 use crate::bounds::JOINT_POSITION;
-use crate::math::{first_non_finite, velocity_limit_scale, JointVector};
+use crate::math::{first_non_finite, JointVector};
 
 /// The largest speed (m/s or rad/s) towards a limit at distance `distance` (m or rad; clamped at 0) that the braking
 /// of [D25](crate::theory#d25) at rate `rate` (`ξ`, s⁻¹) allows when the velocity may change by at most
@@ -35,20 +35,26 @@ use crate::math::{first_non_finite, velocity_limit_scale, JointVector};
 /// at the end; it is the smallest that keeps the set `v ≤ B(d)` invariant: from any speed `v ≤ B(d)` held for `Δt`,
 /// the speed `v − aΔt` (or any lower) is again within `B` at the new distance `d − vΔt`. So the joint can always brake
 /// in time without changing its velocity by more than `aΔt` per period, and with `ξ Δt ≤ 1`, `v Δt ≤ ξ d Δt ≤ d`: the
-/// limit is never crossed. `ξ d` alone for `deceleration = +∞`; `+∞` for `rate = +∞` (no braking); 0 for a
-/// deceleration that is not `> 0`.
+/// limit is never crossed. `ξ d` alone for `deceleration = +∞` (`+∞` when `rate` is too); for `rate = +∞` (no
+/// braking: SNS and the QP cascade) with a finite deceleration, `S(d)` alone, the stopping distance; 0 for a
+/// deceleration or a rate that is not `> 0`.
 pub fn braking_speed(distance: f64, rate: f64, deceleration: f64, period: f64) -> f64 {
     let d = distance.max(0.0);
-    if rate == f64::INFINITY {
-        return f64::INFINITY;
-    }
-    let linear = rate * d;
     if deceleration == f64::INFINITY {
-        return linear;
+        return if rate == f64::INFINITY {
+            f64::INFINITY
+        } else {
+            rate * d
+        };
     }
     if !(deceleration > 0.0 && rate > 0.0) {
         return 0.0;
     }
+    if rate == f64::INFINITY {
+        // No braking: only the distance the limited deceleration needs to stop.
+        return stopping_speed(d, deceleration, period);
+    }
+    let linear = rate * d;
     let (a, xi) = (deceleration, rate);
     let junction = a / (xi * xi);
     if d <= junction {
@@ -70,6 +76,31 @@ pub fn braking_speed(distance: f64, rate: f64, deceleration: f64, period: f64) -
         0.0
     };
     linear.min(stopping)
+}
+
+/// The largest speed (m/s or rad/s) towards a limit at distance `distance` from which a velocity held for whole
+/// periods of `period` (`Δt`) and slowed by at most `deceleration · period` (`h = aΔt`) each period comes to rest
+/// within the distance: the inverse of the distance covered, `D(v) = Δt Σ_{k ≥ 0} (v − k h)₊`,
+///
+/// ```text
+/// V(d) = d / ((n + 1) Δt) + n h / 2,   n = ⌊(√(1 + 8 d / (h Δt)) − 1) / 2⌋   (D(n h) = h Δt n (n + 1) / 2 ≤ d)
+/// ```
+///
+/// `d/Δt` below one period's worth (`n = 0`), `√(2 a d)` far away. The set `v ≤ V(d)` is invariant: `D(v − h) =
+/// D(v) − vΔt`, so from `v ≤ V(d)` held for `Δt`, `v − h ≤ V(d − vΔt)`, and `vΔt ≤ D(v) ≤ d`: the limit is never
+/// crossed. 0 for `d ≤ 0`; `d/Δt` for a deceleration of `+∞`. What SNS's and the QP cascade's box and the full
+/// method's [`braking_speed`] without braking (`rate = +∞`) use.
+pub fn stopping_speed(distance: f64, deceleration: f64, period: f64) -> f64 {
+    let h = deceleration * period;
+    if distance.is_nan() || distance <= 0.0 || h.is_nan() || h <= 0.0 {
+        return 0.0;
+    }
+    if h == f64::INFINITY {
+        return distance / period;
+    }
+    let whole = ((1.0 + 8.0 * distance / (h * period)).sqrt() - 1.0) / 2.0;
+    let n = whole.floor().max(0.0);
+    (distance / ((n + 1.0) * period) + n * h / 2.0).min((n + 1.0) * h)
 }
 
 /// Joint limits and the cost [\[M20\]](crate::theory#m20) that keeps a configuration away from them.
@@ -265,20 +296,6 @@ impl<const N: usize> JointLimits<N> {
         marked
     }
 
-    /// The scale of the velocity sent to the joints: `q̇` scaled uniformly into the robot's velocity limits
-    /// (`|q̇_i| ≤ q̇_i^max`, [`velocity_limit_scale`]), then braked before the hard limits ([`Self::braking_scale`] at
-    /// the rate `braking_rate`, s⁻¹; `+∞`: no braking). `s ∈ [0, 1]`, sent as `s q̇`.
-    pub fn sent_velocity_scale(
-        &self,
-        q: &JointVector<N>,
-        velocity: &JointVector<N>,
-        max_velocity: &JointVector<N>,
-        braking_rate: f64,
-    ) -> f64 {
-        let limit = velocity_limit_scale(velocity, max_velocity);
-        limit * self.braking_scale(q, &(velocity * limit), braking_rate)
-    }
-
     /// `δ_i` of [\[M20\]](crate::theory#m20): how far joint `i` has gone into its activation band (signed, 0 inside the
     /// acceptable box, always 0 for an unlimited joint).
     fn penetration(&self, q: &JointVector<N>, joint: usize) -> f64 {
@@ -444,6 +461,38 @@ mod tests {
         let mut q = (limits.lower() + limits.upper()) * 0.5;
         q[2] = low[2] + 2.9e-7;
         assert!(gradient_error(&limits, &q, 1e-6) < 1e-8 + 1e-6 / (4.0 * limits.range(2)));
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Driven as hard as `V` and `a` allow towards a limit (each period the largest speed within `aΔt` of the last
+        /// and within `V` of the distance left), a joint never crosses it, always finds such a speed, and comes to rest;
+        /// `V` is `√(2ad)` within a period's worth far away and `d/Δt` within one period's travel.
+        #[test]
+        fn stopping_speed_never_overshoots(
+            a in 0.01f64..20.0,
+            period in 1e-4f64..0.05,
+            d0 in 1e-6f64..2.0,
+            v0 in 0.0f64..1.0,
+        ) {
+            let h = a * period;
+            let mut d = d0;
+            let mut v = v0.min(stopping_speed(d, a, period));
+            for _ in 0..100_000 {
+                d -= v * period;
+                prop_assert!(d >= -1e-12 * d0, "crossed: d = {d}");
+                let bound = stopping_speed(d, a, period);
+                prop_assert!(v - h <= bound * (1.0 + 1e-9) + 1e-15, "no speed within reach: v {v}, bound {bound}");
+                v = (v + h).min(bound);
+                if v <= 1e-12 { break; }
+            }
+            let far = 1e3 * a * period * period;
+            let v_far = stopping_speed(far, a, period);
+            prop_assert!((v_far - (2.0 * a * far).sqrt()).abs() <= h);
+            let near = 0.5 * a * period * period;
+            prop_assert!((stopping_speed(near, a, period) - near / period).abs() <= 1e-12 * near / period);
+        }
     }
 
     proptest! {

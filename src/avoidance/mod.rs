@@ -20,13 +20,15 @@ pub mod collision;
 mod composite;
 mod joint_limits;
 pub mod mesh;
+mod motion_limits;
 pub mod obstacles;
 pub mod visibility;
 
 pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
-pub use joint_limits::{braking_speed, JointLimits};
+pub use joint_limits::{braking_speed, stopping_speed, JointLimits};
 pub use mesh::{MeshPaths, MAX_COLLADA_DEPTH, MAX_MESH_BYTES};
+pub use motion_limits::{MotionLimits, ShapedVelocity};
 pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 pub use visibility::VisibilityCost;
 

@@ -6,11 +6,12 @@
 //! joint velocities ([`SnsBounds::velocity_box`]):
 //!
 //! ```text
-//! q̇^hi_i = min( (q^max_i − q_i)/Δt,  √(2 a_i (q^max_i − q_i)),  v_i )      then ∩ [q̇⁻_i − a_i Δt, q̇⁻_i + a_i Δt]
-//! q̇^lo_i = max( (q^min_i − q_i)/Δt, −√(2 a_i (q_i − q^min_i)), −v_i )
+//! q̇^hi_i = min( (q^max_i − q_i)/Δt,  V_i(q^max_i − q_i),  v_i )      then ∩ [q̇⁻_i − a_i Δt, q̇⁻_i + a_i Δt]
+//! q̇^lo_i = max( (q^min_i − q_i)/Δt, −V_i(q_i − q^min_i), −v_i )
 //! ```
 //!
-//! (the square roots and the band around the last velocity `q̇⁻` only with acceleration limits `a`). The levels are
+//! (the stopping speeds `V_i` of a velocity held for whole periods, [`stopping_speed`], about `√(2 a_i d)`, and the
+//! band around the last velocity `q̇⁻` only with acceleration limits `a`). The levels are
 //! solved in order, each keeping what the levels above achieved. At level `k`, with `q̇_{k−1}` and `P_{k−1}` from above
 //! and the set `S` of joints this level has saturated (empty at first):
 //!
@@ -34,7 +35,7 @@
 //! With the box inactive every level is met at the first solve and `q̇_n` is the stack's [\[M14\]](crate::theory#m14),
 //! `q̇_n + P_n q̇*` with a target. Fixed-size storage sized once: the solve allocates nothing.
 
-use crate::avoidance::JointLimits;
+use crate::avoidance::{stopping_speed, JointLimits};
 use crate::linalg::{mul_rows_and_vector_to, ColumnSvd};
 use crate::math::{first_non_finite, JointMatrix, JointVector};
 use crate::stack::{check_order, checked_task, StackError, StackParameters};
@@ -192,8 +193,9 @@ impl<const N: usize> SnsBounds<N> {
             );
             let (mut lo, mut hi) = (below / dt, above / dt);
             if let Some(a) = self.max_acceleration.as_ref().filter(|a| a[i].is_finite()) {
-                lo = lo.max(-(2.0 * a[i] * (-below).max(0.0)).sqrt());
-                hi = hi.min((2.0 * a[i] * above.max(0.0)).sqrt());
+                // The stopping speed of a velocity held for whole periods (√(2ad) is overshot by one).
+                lo = lo.max(-stopping_speed(-below, a[i], dt));
+                hi = hi.min(stopping_speed(above, a[i], dt));
             }
             // Past a limit the two position bounds can cross: the one that returns into the range wins.
             lo = lo.min(hi);

@@ -323,7 +323,7 @@ mod tests {
         let (mut observed_sq, mut held_sq, mut count) = (0.0, 0.0, 0.0);
         for k in 0..periods {
             let t = k as f64 * PERIOD;
-            let frame = (k % FRAME_EVERY == 0).then(|| {
+            let frame = (k.is_multiple_of(FRAME_EVERY)).then(|| {
                 captured.push(truth(t, speed).map(|p| {
                     let mut noisy = p;
                     for axis in 0..2 {

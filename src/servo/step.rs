@@ -4,10 +4,11 @@
 
 use super::error::depth_error;
 use super::{Corners, ServoError, ServoOutput, VisualServo, MAX_TASKS};
+use crate::avoidance::{MotionLimits, ShapedVelocity};
 use crate::camera::ImagePoint;
 use crate::depth::{assign_depths, DepthSource, Depths};
 use crate::feature::Observation;
-use crate::math::{acceleration_limit_scale, first_non_finite, velocity_limit_scale, JointVector};
+use crate::math::{first_non_finite, JointVector};
 use crate::task::{Task, TaskError};
 use crate::visual_task::VisualContext;
 use nalgebra::{Point2, Vector6};
@@ -203,40 +204,28 @@ impl<const N: usize> VisualServo<N> {
         let step =
             self.controller
                 .step(&self.law, &self.values, Some(cost), q, self.iteration, time)?;
-        // Uniform scaling into the velocity limits, then the braking before a hard limit (D25), with the stopping
-        // distance the acceleration limits need (D31): the direction is kept.
+        // The velocity limits, the braking before a hard limit (D25) with the stopping distance the acceleration
+        // limits need, and the change from the velocity sent last within them (D31): the path the simulation takes.
         let unscaled = step.velocity;
-        let braking_rate = self.controller.parameters().braking_rate;
-        // The stopping distance assumes the velocity is held for the longest period the loop may take (D31).
-        let hold = dt.max(self.longest_period);
-        let limit = velocity_limit_scale(&unscaled, &self.max_velocity);
-        let braking = self.limits.braking_scale_under_acceleration(
-            q,
-            &(unscaled * limit),
-            braking_rate,
-            &self.max_acceleration,
-            hold,
-        );
-        let scale = limit * braking;
-        let target = unscaled * scale;
-        // The change from the velocity sent last, scaled uniformly into the acceleration limits (D31); then each joint
-        // within the speed from which it can still stop before its limit, which the bound of the last period leaves
-        // reachable within the joint's acceleration limit (the direction of the change bends only there).
-        let previous = self.output.velocity;
-        let fraction = acceleration_limit_scale(&previous, &target, &self.max_acceleration, dt);
-        let (velocity, clamped) = if fraction >= 1.0 {
-            (target, false)
-        } else {
-            let mut velocity = previous + (target - previous) * fraction;
-            let clamped = self.limits.clamp_to_stopping_distance(
-                q,
-                &mut velocity,
-                braking_rate,
-                &self.max_acceleration,
-                hold,
-            );
-            (velocity, clamped)
+        let motion = MotionLimits {
+            max_velocity: self.max_velocity,
+            max_acceleration: self.max_acceleration,
+            longest_period: self.longest_period,
         };
+        let shaped = motion.shape(
+            &self.limits,
+            q,
+            &unscaled,
+            &self.output.velocity,
+            self.controller.parameters().braking_rate,
+            dt,
+        );
+        let ShapedVelocity {
+            velocity,
+            scale,
+            acceleration_scale: fraction,
+            stopping_clamp: clamped,
+        } = shaped;
         self.controller.set_sent_velocity(&velocity)?;
         let output = &mut self.output;
         output.velocity = velocity;

@@ -121,16 +121,16 @@ pub fn simulate_with<const N: usize>(
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }
-    let max_velocity = JointVector::<N>::from_fn(|i, _| {
-        if scene.chain.joints()[i].kind().is_rotational() {
-            parameters.max_revolute_velocity_rad_s
-        } else {
-            parameters.max_prismatic_velocity_m_s
-        }
-    });
+    let motion = parameters.motion_limits(&scene.chain);
     if let Some(law) = drive.bounded_law {
-        let bounds = SnsBounds::new(scene.limits.clone(), max_velocity, parameters.period)
-            .map_err(|e| ControllerError::Law(e.into()))?;
+        let mut bounds =
+            SnsBounds::new(scene.limits.clone(), motion.max_velocity, parameters.period)
+                .map_err(|e| ControllerError::Law(e.into()))?;
+        if motion.max_acceleration.iter().any(|a| a.is_finite()) {
+            bounds = bounds
+                .with_max_acceleration(motion.max_acceleration)
+                .map_err(|e| ControllerError::Law(e.into()))?;
+        }
         controller = controller.with_bounded_law(law, bounds)?;
     }
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its
@@ -160,7 +160,7 @@ pub fn simulate_with<const N: usize>(
     let mut q = *start;
     // The closest link–obstacle pair at the current `q`, computed once per configuration.
     let mut closest = closest_obstacle(scene, &q)?;
-    let mut totals = Totals::new(&scene.limits, start);
+    let mut totals = Totals::new(&scene.limits, start, &motion, parameters.period);
     let keep = |totals: &mut Totals<N>,
                 log: &mut dyn RunLog<N>,
                 record: Record<N>,
@@ -317,13 +317,18 @@ pub fn simulate_with<const N: usize>(
                     None => return Err(error.into()),
                 },
             };
-        // The robot's velocity limits, then the braking before a hard limit (D25): uniform scalings, and the
-        // controller told what was sent.
-        let braking_rate = controller.parameters().braking_rate;
-        let velocity = step.velocity
-            * scene
-                .limits
-                .sent_velocity_scale(&q, &step.velocity, &max_velocity, braking_rate);
+        // The robot's velocity limits, the braking before a hard limit (D25) and the acceleration limits (D31), as
+        // the servo façade shapes the velocity it sends; the controller told what was sent.
+        let velocity = motion
+            .shape(
+                &scene.limits,
+                &q,
+                &step.velocity,
+                &totals.last_sent,
+                controller.parameters().braking_rate,
+                parameters.period,
+            )
+            .velocity;
         controller.set_sent_velocity(&velocity)?;
         record.velocity = velocity;
         record.sent = true;

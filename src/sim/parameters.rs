@@ -1,8 +1,11 @@
 //! The parameters of a simulation run ([`SimulationParameters`]: period, budget, convergence and goal tolerances,
-//! image margin and incidence bound, velocity limits, visibility margin) and their validation.
+//! image margin and incidence bound, velocity and acceleration limits, visibility margin) and their validation.
 
 use super::SimError;
-use crate::bounds::{MAX_ITERATIONS, PERIOD_S};
+use crate::avoidance::MotionLimits;
+use crate::bounds::{ACCELERATION_PER_S2, MAX_ITERATIONS, PERIOD_S};
+use crate::math::JointVector;
+use crate::robot::SerialChain;
 
 /// Parameters of a simulation run.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -47,6 +50,17 @@ pub struct SimulationParameters {
     pub max_prismatic_velocity_m_s: f64,
     /// The robot's velocity limit of a revolute joint (rad/s, > 0; default `+∞`: none).
     pub max_revolute_velocity_rad_s: f64,
+    /// The robot's acceleration limit of a prismatic joint (m/s², within [`ACCELERATION_PER_S2`] or `+∞`: none, the
+    /// default; about 1 m/s² on an
+    /// industrial arm's or a gantry's axes). The change of the velocity sent from one period to the next is scaled
+    /// uniformly into `a_i Δt`, and the braking before a hard limit keeps the stopping distance, as
+    /// [`crate::servo::VisualServo`] does ([`crate::avoidance::MotionLimits`], [D31](crate::theory#d31)); SNS and the
+    /// QP cascade get the limits in their box too.
+    pub max_prismatic_acceleration_m_s2: f64,
+    /// The robot's acceleration limit of a revolute joint (rad/s², within [`ACCELERATION_PER_S2`] or `+∞`: none, the
+    /// default; an industrial arm's
+    /// controller allows a few rad/s², 2 to 5).
+    pub max_revolute_acceleration_rad_s2: f64,
     /// The full method keeps the target points this far from the image border (px; default 20): when the scene has no
     /// visibility cost of its own, one with this margin joins the full method's avoidance cost, and guards its
     /// removals (D6 (d)): a removal must not bring the predicted points deeper into that band than keeping the task.
@@ -67,6 +81,8 @@ impl Default for SimulationParameters {
             facing_margin_deg: 15.0,
             max_prismatic_velocity_m_s: f64::INFINITY,
             max_revolute_velocity_rad_s: f64::INFINITY,
+            max_prismatic_acceleration_m_s2: f64::INFINITY,
+            max_revolute_acceleration_rad_s2: f64::INFINITY,
             visibility_margin_px: 20.0,
         }
     }
@@ -78,6 +94,32 @@ impl SimulationParameters {
     pub fn facing_activation_deg(&self) -> Option<f64> {
         let activation = self.max_incidence_deg - self.facing_margin_deg;
         (activation < 180.0).then_some(activation)
+    }
+
+    /// The robot's velocity and acceleration limits per joint of `chain`, by the joint's kind (revolute and continuous
+    /// joints take the revolute limits), each velocity held for [`Self::period`]: what the simulation shapes the
+    /// velocity it sends with.
+    pub fn motion_limits<const N: usize>(&self, chain: &SerialChain<N>) -> MotionLimits<N> {
+        let per_joint = |prismatic: f64, revolute: f64| {
+            JointVector::<N>::from_fn(|i, _| {
+                if chain.joints()[i].kind().is_rotational() {
+                    revolute
+                } else {
+                    prismatic
+                }
+            })
+        };
+        MotionLimits {
+            max_velocity: per_joint(
+                self.max_prismatic_velocity_m_s,
+                self.max_revolute_velocity_rad_s,
+            ),
+            max_acceleration: per_joint(
+                self.max_prismatic_acceleration_m_s2,
+                self.max_revolute_acceleration_rad_s2,
+            ),
+            longest_period: self.period,
+        }
     }
 
     /// Checks every parameter.
@@ -145,6 +187,20 @@ impl SimulationParameters {
         ] {
             if value.is_nan() || value <= 0.0 {
                 return invalid(name, value, "> 0 (or +∞ for no limit)");
+            }
+        }
+        for (name, value) in [
+            (
+                "max_prismatic_acceleration_m_s2",
+                self.max_prismatic_acceleration_m_s2,
+            ),
+            (
+                "max_revolute_acceleration_rad_s2",
+                self.max_revolute_acceleration_rad_s2,
+            ),
+        ] {
+            if !(value == f64::INFINITY || ACCELERATION_PER_S2.contains(value)) {
+                return invalid(name, value, ACCELERATION_PER_S2.text);
             }
         }
         let guard = self.visibility_margin_px;

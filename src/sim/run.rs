@@ -2,7 +2,7 @@
 //! the finished [`Run`] with its summary, accumulated record by record so that it is exact whatever the log kept.
 
 use super::Outcome;
-use crate::avoidance::JointLimits;
+use crate::avoidance::{JointLimits, MotionLimits};
 use crate::camera::ImagePoint;
 use crate::controller::{EventKind, StackEvent, TaskCriteria};
 use crate::math::JointVector;
@@ -83,19 +83,33 @@ pub(super) struct Totals<const N: usize> {
     /// The last velocity sent (zero before the first: the run starts at rest).
     pub(super) last_sent: JointVector<N>,
     pub(super) max_velocity_step: f64,
+    /// `a_i Δt`: the change of joint `i`'s velocity its acceleration limit allows in one period (`+∞`: no limit).
+    pub(super) step_allowance: JointVector<N>,
+    /// The largest `|q̇_i(k) − q̇_i(k−1)|` over the iterations and joints.
+    pub(super) max_joint_velocity_step: f64,
+    /// The largest `|q̇_i(k) − q̇_i(k−1)| / (a_i Δt)` over the iterations and joints.
+    pub(super) max_acceleration_ratio: f64,
     pub(super) min_normalized_margin: f64,
     pub(super) min_obstacle_distance: Option<f64>,
     pub(super) continuity: Vec<EventContinuity>,
 }
 
 impl<const N: usize> Totals<N> {
-    /// Before the first iteration, at `start`.
-    pub(super) fn new(limits: &JointLimits<N>, start: &JointVector<N>) -> Self {
+    /// Before the first iteration, at `start`, with the robot's `motion` limits over the period `period` (s).
+    pub(super) fn new(
+        limits: &JointLimits<N>,
+        start: &JointVector<N>,
+        motion: &MotionLimits<N>,
+        period: f64,
+    ) -> Self {
         Self {
             iterations: 0,
             last: None,
             last_sent: JointVector::zeros(),
             max_velocity_step: 0.0,
+            step_allowance: motion.max_acceleration * period,
+            max_joint_velocity_step: 0.0,
+            max_acceleration_ratio: 0.0,
             min_normalized_margin: limits.normalized_margin(start),
             min_obstacle_distance: None,
             continuity: Vec::new(),
@@ -120,9 +134,15 @@ impl<const N: usize> Totals<N> {
         if record.sent {
             // D14: the step at this iteration is the jump of the changes made at it, and otherwise belongs to the window
             // after the last change.
-            let step = (record.velocity - self.last_sent).norm();
+            let change = record.velocity - self.last_sent;
+            let step = change.norm();
             self.last_sent = record.velocity;
             self.max_velocity_step = self.max_velocity_step.max(step);
+            for (c, allowance) in change.iter().zip(self.step_allowance.iter()) {
+                self.max_joint_velocity_step = self.max_joint_velocity_step.max(c.abs());
+                // `|c| / +∞ = 0`: a joint without an acceleration limit never counts.
+                self.max_acceleration_ratio = self.max_acceleration_ratio.max(c.abs() / allowance);
+            }
             let known = self.continuity.len();
             let changes = events
                 .get(known..)
@@ -196,6 +216,20 @@ impl<const N: usize> Run<N> {
     /// nothing was sent); divide by [`Run::period`] for the largest acceleration.
     pub fn max_velocity_step(&self) -> f64 {
         self.totals.max_velocity_step
+    }
+
+    /// The largest change of one joint's sent velocity from one period to the next, `max_k max_i |q̇_i(k) −
+    /// q̇_i(k−1)|` (rad/s or m/s; `q̇(−1) = 0`: the run starts at rest; 0 when nothing was sent).
+    pub fn max_joint_velocity_step(&self) -> f64 {
+        self.totals.max_joint_velocity_step
+    }
+
+    /// The same change against what the robot's acceleration limits allow in a period,
+    /// `max_k max_i |q̇_i(k) − q̇_i(k−1)| / (a_i Δt)` ([`SimulationParameters`](super::SimulationParameters)'s
+    /// `max_*_acceleration_*`, [D31](crate::theory#d31)): at most 1 (up to rounding) when the velocity sent keeps
+    /// within the limits; 0 without acceleration limits (joints without one do not count).
+    pub fn max_acceleration_ratio(&self) -> f64 {
+        self.totals.max_acceleration_ratio
     }
 
     /// The largest `‖q̇(τ⁺) − q̇(τ⁻)‖` over the stack changes: the velocity sent at the iteration of a change against

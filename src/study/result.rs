@@ -39,6 +39,16 @@ pub struct MethodResult {
     /// `max_k ‖q̇_k − q̇_{k−1}‖` (D14).
     #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub max_velocity_step: f64,
+    /// The largest change of one joint's sent velocity from one period to the next, `max_k max_i |q̇_i(k) −
+    /// q̇_i(k−1)|` (rad/s or m/s, [`Run::max_joint_velocity_step`]).
+    #[serde(default, deserialize_with = "shard::finite_or_infinity")]
+    pub max_joint_velocity_step: f64,
+    /// That change against the robot's acceleration limit, `max_k max_i |q̇_i(k) − q̇_i(k−1)| / (a_i Δt)`
+    /// ([`Run::max_acceleration_ratio`], [D31](crate::theory#d31)): at most 1 (up to rounding) when the velocity sent
+    /// keeps within the scenario's `max_*_acceleration_*`; 0 without acceleration limits (and in a `study.json`
+    /// written before the field).
+    #[serde(default, deserialize_with = "shard::finite_or_infinity")]
+    pub max_acceleration_ratio: f64,
     /// The camera's distance to its goal at the end (m).
     #[serde(deserialize_with = "shard::finite_or_infinity")]
     pub camera_translation_error: f64,
@@ -133,6 +143,9 @@ pub struct MethodSummary {
     pub median_take_outs_of_a_task: f64,
     /// The median over runs of `max_k ‖q̇_k − q̇_{k−1}‖`.
     pub median_max_velocity_step: f64,
+    /// The largest [`MethodResult::max_acceleration_ratio`] over the runs: at most 1 (up to rounding) when every
+    /// velocity sent kept within the acceleration limits; 0 without them.
+    pub max_acceleration_ratio: f64,
     /// Runs that converged with the camera within [`POSE_TOLERANCE_M`] and [`POSE_TOLERANCE_DEG`] of its goal (with a
     /// measurement model, the run converges on the noise-free errors; this says where the camera really ended).
     pub converged_within_pose_tolerance: usize,
@@ -246,6 +259,8 @@ pub(super) fn method_result<const N: usize>(
             .next()
             .is_some(),
         max_velocity_step: run.max_velocity_step(),
+        max_joint_velocity_step: run.max_joint_velocity_step(),
+        max_acceleration_ratio: run.max_acceleration_ratio(),
         camera_translation_error,
         camera_rotation_error_deg,
         min_normalized_margin: run.min_normalized_margin(),
@@ -269,6 +284,8 @@ mod tests {
             max_take_outs_of_a_task: 0,
             fallback: false,
             max_velocity_step: 0.0,
+            max_joint_velocity_step: 0.0,
+            max_acceleration_ratio: 0.0,
             camera_translation_error: 0.0,
             camera_rotation_error_deg: 0.0,
             min_normalized_margin,

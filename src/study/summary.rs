@@ -53,6 +53,10 @@ pub(super) fn summarize(
                     results.iter().map(|r| r.max_take_outs_of_a_task as f64),
                 ),
                 median_max_velocity_step: median(results.iter().map(|r| r.max_velocity_step)),
+                max_acceleration_ratio: results
+                    .iter()
+                    .map(|r| r.max_acceleration_ratio)
+                    .fold(0.0, f64::max),
                 converged_within_pose_tolerance: results
                     .iter()
                     .filter(|r| {

@@ -47,6 +47,7 @@ mod servo;
 mod servo_acceleration;
 mod servo_methods;
 mod servo_observer;
+mod sim_acceleration;
 mod sns;
 mod square_target;
 mod stack_properties;

@@ -56,7 +56,7 @@ fn run(noise_px: f64, latency_frames: Option<usize>, seconds: f64, seed: u64) ->
     };
     for k in 0..(seconds / PERIOD) as usize {
         let truth = plant.pixels();
-        if k % FRAME_EVERY == 0 {
+        if k.is_multiple_of(FRAME_EVERY) {
             frames.push(truth.map(|corner| {
                 corner.map(|(u, v)| {
                     let mut noise = || {
@@ -174,7 +174,7 @@ fn the_observer_allocates_nothing_keeps_its_estimate_on_a_bad_frame_and_names_ba
     let mut plant = Plant::new(experiment.scene.clone(), camera, experiment.start, PERIOD);
     let mut frame = plant.pixels();
     let mut step = |servo: &mut VisualServo<6>, plant: &mut Plant, k: usize| {
-        if k % FRAME_EVERY == 0 {
+        if k.is_multiple_of(FRAME_EVERY) {
             frame = plant.pixels();
         }
         let velocity = servo.step(plant.time(), &frame, &plant.q).unwrap().velocity;
