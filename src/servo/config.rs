@@ -3,7 +3,7 @@
 
 use super::step::check_pixel;
 use super::{AdaptiveGain, ServoError, ServoOutput, VisualServo, MAX_TASKS};
-use crate::avoidance::JointLimits;
+use crate::avoidance::{JointLimits, MotionLimits};
 use crate::camera::{CalibratedCamera, EyeInHand, ImagePoint};
 use crate::controller::{ControllerParameters, HardLimitRule, StackController};
 use crate::depth::DepthSource;
@@ -257,13 +257,9 @@ impl<const N: usize> VisualServo<N> {
                     *config.chain.upper_limits(),
                     config.activation_ratio,
                 )?;
-                let mut bounds = SnsBounds::new(limits, config.max_joint_velocity, period)
+                let bounds = SnsBounds::new(limits, config.max_joint_velocity, period)
+                    .and_then(|bounds| bounds.with_max_acceleration(config.max_joint_acceleration))
                     .map_err(|e| ServoError::Law(e.into()))?;
-                if config.max_joint_acceleration.iter().any(|a| a.is_finite()) {
-                    bounds = bounds
-                        .with_max_acceleration(config.max_joint_acceleration)
-                        .map_err(|e| ServoError::Law(e.into()))?;
-                }
                 Some((law, bounds))
             }
         };
@@ -380,9 +376,11 @@ impl<const N: usize> VisualServo<N> {
             observer,
             target: config.target,
             desired_points,
-            max_velocity: config.max_joint_velocity,
-            max_acceleration: config.max_joint_acceleration,
-            longest_period: config.control_period_s.unwrap_or(0.0),
+            motion: MotionLimits {
+                max_velocity: config.max_joint_velocity,
+                max_acceleration: config.max_joint_acceleration,
+                longest_period: config.control_period_s.unwrap_or(0.0),
+            },
             adaptive: config.adaptive_gain,
             convergence_error: config.convergence_error,
             start_time: None,

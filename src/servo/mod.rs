@@ -75,12 +75,11 @@ pub use config::{DesiredImage, ServoConfig, ServoMethod, TaskChoice};
 pub use error::ServoError;
 pub use output::ServoOutput;
 
-use crate::avoidance::JointLimits;
+use crate::avoidance::{JointLimits, MotionLimits};
 use crate::camera::{CalibratedCamera, EyeInHand, ImagePoint};
 use crate::controller::StackController;
 use crate::depth::{DepthEstimator, DepthSource};
 use crate::law::ControlLaw;
-use crate::math::JointVector;
 use crate::measurement::FeatureObserver;
 use crate::robot::{KinematicsWorkspace, SerialChain};
 use crate::target::RectangleTarget;
@@ -114,10 +113,9 @@ pub struct VisualServo<const N: usize> {
     /// The target model, for [`DepthSource::TargetPose`].
     target: RectangleTarget,
     desired_points: [ImagePoint; 4],
-    max_velocity: JointVector<N>,
-    max_acceleration: JointVector<N>,
-    /// [`ServoConfig::control_period_s`] (0 when not given): the longest hold the stopping distance assumes.
-    longest_period: f64,
+    /// The velocity and acceleration limits and the longest hold ([`ServoConfig::control_period_s`], 0 when not given)
+    /// that shape the velocity sent (D25, D31).
+    motion: MotionLimits<N>,
     adaptive: Option<AdaptiveGain>,
     convergence_error: f64,
     /// Time of the first accepted period (s); the controller runs on `time − start`.

@@ -4,7 +4,7 @@
 
 use super::error::depth_error;
 use super::{Corners, ServoError, ServoOutput, VisualServo, MAX_TASKS};
-use crate::avoidance::{MotionLimits, ShapedVelocity};
+use crate::avoidance::ShapedVelocity;
 use crate::camera::ImagePoint;
 use crate::depth::{assign_depths, DepthSource, Depths};
 use crate::feature::Observation;
@@ -207,12 +207,7 @@ impl<const N: usize> VisualServo<N> {
         // The velocity limits, the braking before a hard limit (D25) with the stopping distance the acceleration
         // limits need, and the change from the velocity sent last within them (D31): the path the simulation takes.
         let unscaled = step.velocity;
-        let motion = MotionLimits {
-            max_velocity: self.max_velocity,
-            max_acceleration: self.max_acceleration,
-            longest_period: self.longest_period,
-        };
-        let shaped = motion.shape(
+        let shaped = self.motion.shape(
             &self.limits,
             q,
             &unscaled,

@@ -123,14 +123,9 @@ pub fn simulate_with<const N: usize>(
     }
     let motion = parameters.motion_limits(&scene.chain);
     if let Some(law) = drive.bounded_law {
-        let mut bounds =
-            SnsBounds::new(scene.limits.clone(), motion.max_velocity, parameters.period)
-                .map_err(|e| ControllerError::Law(e.into()))?;
-        if motion.max_acceleration.iter().any(|a| a.is_finite()) {
-            bounds = bounds
-                .with_max_acceleration(motion.max_acceleration)
-                .map_err(|e| ControllerError::Law(e.into()))?;
-        }
+        let bounds = SnsBounds::new(scene.limits.clone(), motion.max_velocity, parameters.period)
+            .and_then(|bounds| bounds.with_max_acceleration(motion.max_acceleration))
+            .map_err(|e| ControllerError::Law(e.into()))?;
         controller = controller.with_bounded_law(law, bounds)?;
     }
     // The full method keeps the target in view: the scene's visibility cost, or one with the default margin, joins its

@@ -252,12 +252,22 @@ proptest! {
 
 /// `braking_speed` against its closed forms: `ξ d` with no acceleration limit or close to the limit (`ξ² d ≤ a`);
 /// beyond, as `Δt → 0`, `√(2 a d − a²/ξ²)`, the speed from which slowing at `a` to `a/ξ`, then approaching
-/// exponentially at the rate `ξ`, stops at the limit; no braking at `ξ = +∞`.
+/// exponentially at the rate `ξ`, stops at the limit; at `ξ = +∞` (no braking) the stopping speed of a held velocity
+/// alone, and no bound without an acceleration limit either.
 #[test]
 fn the_braking_speed_matches_its_closed_forms() {
     let (rate, a) = (5.0, 2.0);
     assert_eq!(braking_speed(0.3, rate, f64::INFINITY, 0.01), 1.5);
-    assert_eq!(braking_speed(0.3, f64::INFINITY, a, 0.01), f64::INFINITY);
+    assert_eq!(
+        braking_speed(0.3, f64::INFINITY, f64::INFINITY, 0.01),
+        f64::INFINITY
+    );
+    // No braking (SNS, the QP cascade) but a limited deceleration: the stopping speed of a held velocity alone. From
+    // 0.3 with aΔt = 0.02: 54 whole decrements fit (0.02 · 0.01 · 54 · 55 / 2 = 0.297 ≤ 0.3 < 0.308), so
+    // V = 0.3 / (55 · 0.01) + 54 · 0.02 / 2, a little under √(2 a d) = √1.2.
+    let stopping = braking_speed(0.3, f64::INFINITY, a, 0.01);
+    assert!((stopping - (0.3 / 0.55 + 0.54)).abs() < 1e-12, "{stopping}");
+    assert!(stopping < 1.2f64.sqrt() && stopping > 1.2f64.sqrt() - a * 0.01);
     assert_eq!(braking_speed(-0.1, rate, a, 0.01), 0.0);
     assert_eq!(braking_speed(0.05, rate, a, 0.01), 0.25); // ξ² d = 1.25 ≤ 2
     for d in [0.1, 0.2, 0.5, 1.0, 3.0] {
