@@ -597,3 +597,36 @@ fn sns_runs_of_the_limit_scenarios_never_pass_a_bound() {
         assert_eq!(RunKind::from_name("sns"), Some(RunKind::Sns));
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Acceleration limits of `+∞` on every joint are no acceleration limits: the box is the one without them, to the
+    /// bit, wherever the joints and the last velocity are (inside the range, at or past a limit). So the studies, whose
+    /// scenarios give no acceleration limits, run SNS and the QP cascade exactly as before the stopping speed of D31
+    /// replaced `√(2ad)`.
+    #[test]
+    fn infinite_acceleration_limits_leave_the_box_unchanged(
+        q in prop::array::uniform3(-1.2f64..1.2),
+        previous in prop::array::uniform3(-2.0f64..2.0),
+        period in 1e-3f64..0.05,
+    ) {
+        let limits = JointLimits::new(
+            JointVector::from([-1.0, -0.5, -2.0]),
+            JointVector::from([1.0, 0.7, 0.1]),
+            0.1,
+        )
+        .unwrap();
+        let plain = SnsBounds::new(limits, JointVector::from([0.8, 1.5, f64::INFINITY]), period).unwrap();
+        let unlimited = plain
+            .clone()
+            .with_max_acceleration(JointVector::repeat(f64::INFINITY))
+            .unwrap();
+        let (q, previous) = (JointVector::from(q), JointVector::from(previous));
+        let zero = JointVector::<3>::zeros();
+        let (mut lo, mut hi, mut lo_inf, mut hi_inf) = (zero, zero, zero, zero);
+        plain.velocity_box(&q, &previous, &mut lo, &mut hi).unwrap();
+        unlimited.velocity_box(&q, &previous, &mut lo_inf, &mut hi_inf).unwrap();
+        prop_assert_eq!((lo, hi), (lo_inf, hi_inf));
+    }
+}
