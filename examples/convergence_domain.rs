@@ -427,7 +427,10 @@ fn zoo_markdown(
          `servostack::scenario::generate` (the arm, its links and camera mount in `assets/zoo.toml`), and the draws \
          each method converged in, per family. *covered*: draws where the full method converged among those where a \
          baseline did; *worse*: draws where `stack_gradient` converged and the full method did not; *off goal*: runs of \
-         the full method that settled away from the goal pose.\n",
+         the full method that settled away from the goal pose; *straight-feasible*: the draws the full method converged in \
+         among those whose straight joint path to the goal keeps the target in view and the joints in their limits (with \
+         the 95 % lower confidence bound of that share); *p95 / budget*: the 95th percentile of the iterations the full \
+         method's converged runs took, as a share of each run's budget.\n",
         zoo.package, zoo.version
     );
     for arm in &zoo.arms {

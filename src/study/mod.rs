@@ -197,6 +197,7 @@ impl<'a> Study<'a> {
             scenario: self.scenario.name.clone(),
             seed: self.seed,
             draws_per_family: self.draws,
+            budget: self.scenario.simulation.max_iterations,
             shard: self.shard,
             families,
             iterations,

@@ -7,8 +7,8 @@ use crate::scenario::RunKind;
 use std::path::Path;
 
 impl StudyResult {
-    /// The per-family summary without the draws (`summary.json`): scenario, seed, draws per family, the shard when
-    /// the result is one, per family its summaries, then iterations, seconds and threads.
+    /// The per-family summary without the draws (`summary.json`): scenario, seed, draws per family, budget, the shard
+    /// when the result is one, per family its summaries, then iterations, seconds and threads.
     pub fn summary_json(&self) -> serde_json::Value {
         let families: Vec<_> = self
             .families
@@ -29,6 +29,7 @@ impl StudyResult {
             "scenario": self.scenario,
             "seed": self.seed,
             "draws_per_family": self.draws_per_family,
+            "budget": self.budget,
             "families": families,
             "iterations": self.iterations,
             "seconds": self.seconds,
@@ -63,30 +64,41 @@ impl StudyResult {
         for m in &first.methods {
             table.push_str(&format!(" {} |", m.method.name()));
         }
-        table.push_str(" covered | worse | off goal | straight-feasible |\n|---|");
-        table.push_str(&"---|".repeat(first.methods.len() + 4));
+        table.push_str(" covered | worse | off goal | straight-feasible | p95 / budget |\n|---|");
+        table.push_str(&"---|".repeat(first.methods.len() + 5));
         table.push('\n');
         for family in &self.families {
             table.push_str(&format!("| {} |", family.family.name));
             for m in &family.methods {
                 table.push_str(&format!(" {} |", m.converged));
             }
-            let off_goal = family
+            let full = family
                 .methods
                 .iter()
-                .find(|m| m.method == RunKind::FullMethod)
-                .map_or("-".into(), |m| {
-                    m.outcomes.get("off_goal").copied().unwrap_or(0).to_string()
-                });
+                .find(|m| m.method == RunKind::FullMethod);
+            let off_goal = full.map_or("-".into(), |m| {
+                m.outcomes.get("off_goal").copied().unwrap_or(0).to_string()
+            });
             table.push_str(&format!(
-                " {}/{} | {} | {off_goal} | {} |\n",
+                " {}/{} | {} | {off_goal} | {} | {} |\n",
                 family.full_method_also_converged,
                 family.any_baseline_converged,
                 family.full_method_worse_than_stack_gradient,
-                family.straight_feasible_text()
+                family.straight_feasible_text(),
+                self.p95_text(full)
             ));
         }
         table
+    }
+
+    /// The full method's 95th percentile of iterations to converge as a share of the budget (`0.62`), the count when
+    /// the budget is unknown, `-` without the full method or a converged run.
+    fn p95_text(&self, full: Option<&super::MethodSummary>) -> String {
+        match full.and_then(|m| m.p95_iterations_to_converge) {
+            Some(p95) if self.budget > 0 => format!("{:.2}", p95 as f64 / self.budget as f64),
+            Some(p95) => p95.to_string(),
+            None => "-".into(),
+        }
     }
 }
 
@@ -108,7 +120,7 @@ impl std::fmt::Display for StudyResult {
         }
         writeln!(
             f,
-            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
+            " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16} {:>8}",
             "removals",
             "per task",
             "fallback",
@@ -118,7 +130,8 @@ impl std::fmt::Display for StudyResult {
             "worse",
             "off goal",
             "pose",
-            "straight"
+            "straight",
+            "p95 iter"
         )?;
         for family in &self.families {
             write!(f, "{:<12}", family.family.name)?;
@@ -131,7 +144,7 @@ impl std::fmt::Display for StudyResult {
                 .find(|m| m.method == RunKind::FullMethod);
             writeln!(
                 f,
-                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16}",
+                " {:>10} {:>9} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>9} {:>16} {:>8}",
                 full.map_or("-".into(), |m| format!("{}", m.median_removals)),
                 full.map_or("-".into(), |m| format!("{}", m.median_removals_of_a_task)),
                 full.map_or("-".into(), |m| m.fallbacks.to_string()),
@@ -157,7 +170,8 @@ impl std::fmt::Display for StudyResult {
                 full.map_or("-".into(), |m| m
                     .converged_within_pose_tolerance
                     .to_string()),
-                family.straight_feasible_text()
+                family.straight_feasible_text(),
+                self.p95_text(full)
             )?;
         }
         writeln!(
@@ -172,10 +186,12 @@ impl std::fmt::Display for StudyResult {
              converged); pose: converged runs of the full method whose camera ended within {} mm / {}° of its goal; \
              straight: draws the full method converged in among the straight-feasible ones (the straight joint path to \
              the goal keeps the target in view and the joints in their limits), with the 95 % lower confidence bound \
-             of that share",
+             of that share; p95 iter: the 95th percentile of the iterations the full method's converged runs took, as a \
+             share of the budget of {} iterations",
             AT_LIMIT_MARGIN,
             POSE_TOLERANCE_M * 1e3,
-            POSE_TOLERANCE_DEG
+            POSE_TOLERANCE_DEG,
+            self.budget
         )?;
         let rate = self.iterations as f64 / self.seconds.max(1e-9);
         writeln!(

@@ -34,6 +34,10 @@ pub struct MethodResult {
     pub restart_take_outs: usize,
     /// The largest number of times one task was taken out: its removals and a restart's taking it out alike.
     pub max_take_outs_of_a_task: usize,
+    /// The iteration at which the sequence restarted ([D29](crate::theory#d29)); absent when it did not. With
+    /// [`Self::iterations`] it tells how much of a win the replay took.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restart_iteration: Option<usize>,
     /// Whether the controller fell back to the stack with gradient (D13).
     pub fallback: bool,
     /// `max_k ‖q̇_k − q̇_{k−1}‖` (D14).
@@ -149,6 +153,12 @@ pub struct MethodSummary {
     /// Runs that converged with the camera within [`POSE_TOLERANCE_M`] and [`POSE_TOLERANCE_DEG`] of its goal (with a
     /// measurement model, the run converges on the noise-free errors; this says where the camera really ended).
     pub converged_within_pose_tolerance: usize,
+    /// The median of the iterations the converged runs took; absent when none converged.
+    pub median_iterations_to_converge: Option<f64>,
+    /// The 95th percentile (nearest rank: the smallest count that at least 95 % of the converged runs did not
+    /// exceed) of the iterations the converged runs took; absent when none converged. Against
+    /// [`StudyResult::budget`]: how close the wins came to the end of their budget.
+    pub p95_iterations_to_converge: Option<usize>,
 }
 
 /// The camera-position tolerance of [`MethodSummary::converged_within_pose_tolerance`] (m).
@@ -207,6 +217,9 @@ pub struct StudyResult {
     pub seed: u64,
     /// Draws per family.
     pub draws_per_family: usize,
+    /// Each run's iteration budget, the scenario's `simulation.max_iterations` (0 in a `study.json` written before
+    /// the field).
+    pub budget: usize,
     /// The part of the draws run ([`Study::with_shard`](super::Study::with_shard)); absent: every draw.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shard: Option<Shard>,
@@ -254,6 +267,10 @@ pub(super) fn method_result<const N: usize>(
         max_removals_of_a_task: per_task.iter().copied().max().unwrap_or(0),
         restart_take_outs: run.events_of(crate::controller::EventKind::Restart).count(),
         max_take_outs_of_a_task: take_outs.iter().copied().max().unwrap_or(0),
+        restart_iteration: run
+            .events_of(crate::controller::EventKind::Restart)
+            .next()
+            .map(|event| event.iteration),
         fallback: run
             .events_of(crate::controller::EventKind::Fallback)
             .next()
@@ -282,6 +299,7 @@ mod tests {
             max_removals_of_a_task: 0,
             restart_take_outs: 0,
             max_take_outs_of_a_task: 0,
+            restart_iteration: None,
             fallback: false,
             max_velocity_step: 0.0,
             max_joint_velocity_step: 0.0,

@@ -124,6 +124,8 @@ struct StudyFile {
     seed: u64,
     draws_per_family: usize,
     #[serde(default)]
+    budget: usize,
+    #[serde(default)]
     shard: Option<Shard>,
     families: Vec<FamilyFile>,
     iterations: usize,
@@ -168,6 +170,7 @@ impl StudyResult {
             scenario: file.scenario,
             seed: file.seed,
             draws_per_family: file.draws_per_family,
+            budget: file.budget,
             shard: file.shard,
             families,
             iterations: file.iterations,
@@ -180,7 +183,7 @@ impl StudyResult {
     /// once, the summaries recomputed over them; `seconds` and `threads` the sums of the shards' ([`Shard`]).
     ///
     /// # Errors
-    /// [`ShardError::Mismatch`] when `parts` is empty, when they differ in scenario, seed, draws per family, families,
+    /// [`ShardError::Mismatch`] when `parts` is empty, when they differ in scenario, seed, draws per family, budget, families,
     /// methods or shard count, when a shard is missing or given twice, or when a part is not a shard.
     pub fn merge(parts: &[StudyResult]) -> Result<StudyResult, ShardError> {
         let mismatch = |reason: String| ShardError::Mismatch { reason };
@@ -206,12 +209,13 @@ impl StudyResult {
             let same = part.scenario == first.scenario
                 && part.seed == first.seed
                 && part.draws_per_family == first.draws_per_family
+                && part.budget == first.budget
                 && families(part) == families(first)
                 && methods(part) == methods(first);
             if !same {
                 return Err(mismatch(format!(
                     "shard {:?} of {} (seed {}, {} draws per family) is not of the study of shard {:?} of {} \
-                     (seed {}, {} draws per family), or its families or methods differ",
+                     (seed {}, {} draws per family), or its iteration budget, families or methods differ",
                     part.shard.map(|s| s.to_string()),
                     part.scenario,
                     part.seed,
@@ -264,6 +268,7 @@ impl StudyResult {
             scenario: first.scenario.clone(),
             seed: first.seed,
             draws_per_family: first.draws_per_family,
+            budget: first.budget,
             shard: None,
             families: merged,
             iterations: parts.iter().map(|p| p.iterations).sum(),

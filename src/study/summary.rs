@@ -65,6 +65,21 @@ pub(super) fn summarize(
                             && r.camera_rotation_error_deg <= POSE_TOLERANCE_DEG
                     })
                     .count(),
+                median_iterations_to_converge: Some(median(
+                    results
+                        .iter()
+                        .filter(|r| r.converged())
+                        .map(|r| r.iterations as f64),
+                ))
+                .filter(|m| !m.is_nan()),
+                p95_iterations_to_converge: nearest_rank(
+                    0.95,
+                    results
+                        .iter()
+                        .filter(|r| r.converged())
+                        .map(|r| r.iterations)
+                        .collect(),
+                ),
             }
         })
         .collect();
@@ -106,5 +121,35 @@ fn median(values: impl Iterator<Item = f64>) -> f64 {
         values[mid]
     } else {
         0.5 * (values[mid - 1] + values[mid])
+    }
+}
+
+/// The `p`-quantile of `values` by nearest rank: the smallest value that at least a share `p` of them do not exceed
+/// (the value of rank `⌈p n⌉` in increasing order, `0 < p ≤ 1`); `None` when empty.
+fn nearest_rank(p: f64, mut values: Vec<usize>) -> Option<usize> {
+    values.sort_unstable();
+    let rank = (p * values.len() as f64).ceil() as usize;
+    values.get(rank.clamp(1, values.len().max(1)) - 1).copied()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nearest_rank;
+
+    #[test]
+    fn the_95th_percentile_is_the_value_of_rank_ceil_of_95_percent() {
+        // 20 values: rank ⌈19⌉ = 19, one value above it; 100 values: rank 95; 21 values: rank ⌈19.95⌉ = 20.
+        assert_eq!(nearest_rank(0.95, (1..=20).rev().collect()), Some(19));
+        assert_eq!(
+            nearest_rank(0.95, (1..=100).map(|i| 10 * i).collect()),
+            Some(950)
+        );
+        assert_eq!(nearest_rank(0.95, (1..=21).collect()), Some(20));
+        // One value is its own percentile; none has none.
+        assert_eq!(nearest_rank(0.95, vec![7]), Some(7));
+        assert_eq!(nearest_rank(0.95, vec![]), None);
+        // Ties: the value, not a position.
+        assert_eq!(nearest_rank(0.95, vec![5, 5, 5, 9]), Some(9));
+        assert_eq!(nearest_rank(0.5, vec![5, 5, 5, 9]), Some(5));
     }
 }

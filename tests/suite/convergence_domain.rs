@@ -294,7 +294,31 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     let study = Study::new(&scenario, families(&["uniform"]), 24, 3)
         .unwrap()
         .with_methods(&[RunKind::FullMethod]);
-    let draws = study.run().unwrap().families.remove(0).draws;
+    let result = study.run().unwrap();
+    let family = &result.families[0];
+    let draws = &family.draws;
+    // The study says when each run restarted, and how the wins' iterations spread against the budget.
+    for draw in draws {
+        let run = &draw.methods[0];
+        assert_eq!(
+            run.restart_iteration.is_some(),
+            run.restart_take_outs > 0,
+            "{run:?}"
+        );
+        assert!(run.restart_iteration.is_none_or(|at| at < run.iterations));
+    }
+    let mut wins: Vec<usize> = draws
+        .iter()
+        .filter(|d| d.methods[0].converged())
+        .map(|d| d.methods[0].iterations)
+        .collect();
+    wins.sort_unstable();
+    let summary = &family.methods[0];
+    let p95 = summary.p95_iterations_to_converge.unwrap();
+    assert_eq!(result.budget, scenario.simulation.max_iterations);
+    assert!(wins.iter().filter(|&&w| w <= p95).count() * 20 >= wins.len() * 19);
+    assert!(wins.iter().filter(|&&w| w < p95).count() * 20 < wins.len() * 19);
+    assert!(summary.median_iterations_to_converge.unwrap() <= p95 as f64 && p95 <= result.budget);
     let rescued = draws
         .iter()
         .zip(&once)
@@ -307,6 +331,7 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
         .run_with(&scenario.settings(), RunKind::FullMethod, &mut SummaryOnly)
         .unwrap();
     assert_eq!(run.outcome.name(), "converged");
+    assert_eq!(run.iterations(), rescued.methods[0].iterations);
     let restarts: Vec<_> = run
         .event_continuity()
         .into_iter()
@@ -320,6 +345,10 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     assert!(restarts
         .iter()
         .all(|e| e.iteration == restarts[0].iteration));
+    assert_eq!(
+        rescued.methods[0].restart_iteration,
+        Some(restarts[0].iteration)
+    );
     let restart = restarts.last().unwrap();
     assert!(
         restart.jump < 0.1 * restart.law_jump,
