@@ -75,12 +75,14 @@ def study(binary, target, options, out, extra):
     for summary_path in sorted(pathlib.Path(out).rglob("summary.json")):
         summary = json.loads(summary_path.read_text())
         draws = json.loads((summary_path.parent / "study.json").read_text())
-        found[summary["scenario"]] = (summary, draws, budget_of(summary_path.parent, target))
+        budget = summary.get("budget") or budget_of(summary_path.parent, target)
+        found[summary["scenario"]] = (summary, draws, budget)
     return found
 
 
 def budget_of(directory, target):
-    """The iteration budget of the scenario studied in `directory` (the zoo writes its generated scenario there)."""
+    """The iteration budget of the scenario studied in `directory` (the zoo writes its generated scenario there), for
+    a summary.json written before it gave the budget."""
     for candidate in [directory / "scenario.toml"] + [pathlib.Path(t) for t in target if t.endswith(".toml")]:
         path = candidate if candidate.is_absolute() else ROOT / candidate
         if path.exists():
