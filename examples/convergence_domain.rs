@@ -6,7 +6,8 @@
 //! [--out DIR] [--noise PX] [--calib FRAC] [--dump FAMILY:DRAW] [--shard I/N]` (defaults: every standard family,
 //! K = 200, seed 1, DIR = `target/convergence_domain/<scenario>`; `--family feasible` adds the uniform starts whose
 //! straight joint path to the goal keeps the target in view, a family run only when named). `--noise` and `--calib` add uniform pixel noise and
-//! an intrinsics error to every draw; `--dump` writes one draw as a scenario file, to rerun with `run_scenario`.
+//! an intrinsics error to every draw; `--dump` writes one draw as a scenario file `<scenario>_<family>_<draw>.toml` into
+//! DIR (with `--zoo`, into each arm's directory) instead of running the study, to rerun with `run_scenario`.
 //!
 //! The zoo of real arms: `--zoo [--zoo-dir DIR] [--arm NAME]...` runs the study on the paper's scenario generated for
 //! every arm of `assets/zoo.toml` (or the arms named), with the URDFs of `example-robot-data` in DIR (default: the
@@ -297,7 +298,8 @@ fn study(
             with_joint_count(scenario.joint_count()?, DrawScenario(&study, family, *draw))??;
         situation.name = format!("{}_{family}_{draw}", scenario.name);
         let text = toml::to_string(&situation)?;
-        let path = PathBuf::from(format!("{}.toml", situation.name));
+        std::fs::create_dir_all(out)?;
+        let path = out.join(format!("{}.toml", situation.name));
         std::fs::write(&path, text)?;
         println!("wrote {}", path.display());
         return Ok(());
@@ -403,7 +405,8 @@ fn zoo(options: &Options) -> Result<(), Box<dyn std::error::Error>> {
             failed.push(arm.name.clone());
         }
     }
-    if options.shard.is_none() {
+    // A shard's or a dump's directories hold no whole study to tabulate.
+    if options.shard.is_none() && options.dump.is_none() {
         std::fs::write(out.join("zoo.md"), zoo_markdown(&zoo, &out, &options.arms)?)?;
         println!("zoo.md in {}", out.display());
     }
