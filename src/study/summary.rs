@@ -29,13 +29,19 @@ pub(super) fn summarize(
         .enumerate()
         .map(|(i, &method)| {
             let results: Vec<&MethodResult> = draws.iter().map(|d| &d.methods[i]).collect();
+            // The iterations the converged runs took, for the median and the 95th percentile.
+            let iterations_to_converge: Vec<usize> = results
+                .iter()
+                .filter(|r| r.converged())
+                .map(|r| r.iterations)
+                .collect();
             let mut outcomes = std::collections::BTreeMap::new();
             for r in &results {
                 *outcomes.entry(r.outcome).or_insert(0) += 1;
             }
             MethodSummary {
                 method,
-                converged: results.iter().filter(|r| r.converged()).count(),
+                converged: iterations_to_converge.len(),
                 draws: results.len(),
                 outcomes,
                 median_removals: median(results.iter().map(|r| r.removals as f64)),
@@ -66,20 +72,10 @@ pub(super) fn summarize(
                     })
                     .count(),
                 median_iterations_to_converge: Some(median(
-                    results
-                        .iter()
-                        .filter(|r| r.converged())
-                        .map(|r| r.iterations as f64),
+                    iterations_to_converge.iter().map(|&i| i as f64),
                 ))
                 .filter(|m| !m.is_nan()),
-                p95_iterations_to_converge: nearest_rank(
-                    0.95,
-                    results
-                        .iter()
-                        .filter(|r| r.converged())
-                        .map(|r| r.iterations)
-                        .collect(),
-                ),
+                p95_iterations_to_converge: nearest_rank(0.95, iterations_to_converge),
             }
         })
         .collect();
