@@ -4,6 +4,9 @@
 //!   for the paper's four stacked tasks under the stack controller (joint-limit avoidance, continuity, prediction and
 //!   criteria at every step), the classical six-row task under the controller, and the peer variants A, B, C, CL; in
 //!   episodes of at most 1000 steps from `q0` (the reset and the pushes of the stack untimed), as the peer protocol.
+//! * `sequencing/*`: the same loops' steps from `q0` until every task is stacked, the pushes included: while the
+//!   sequence is incomplete the controller also solves the stack with the next task added at every step (the early
+//!   push's trial law, D28), beside the prediction and criteria of the steady steps.
 //! * `parts/*`: kinematics, observation of the target (kinematics + camera pose + projection + plane + `cVe eJe`),
 //!   moments, the four paper tasks evaluated (features, `L`, `J = L cVe eJe`), the stack solve of 1–4 paper levels,
 //!   the control law alone, and the controller step (law + prediction + criteria) on evaluated tasks.
@@ -63,6 +66,45 @@ fn steps(c: &mut Criterion) {
                     }
                     total += start.elapsed();
                     done += steps;
+                }
+                total
+            })
+        });
+        black_box(servo.error_norm());
+    }
+    group.finish();
+}
+
+/// The steps of the sequencing phase: from `q0` (the reset untimed) until every task is stacked.
+fn sequencing(c: &mut Criterion) {
+    let mut group = c.benchmark_group("sequencing");
+    let loops = [
+        ("paper_four_tasks_controller", ServoLoop::paper()),
+        ("paper_full_method", ServoLoop::paper_full_method()),
+    ];
+    for (name, mut servo) in loops {
+        let complete = |servo: &ServoLoop| servo.controller().is_none_or(|c| c.is_complete());
+        servo.reset();
+        let mut steps_to_stack = 0;
+        while !complete(&servo) {
+            servo.step();
+            steps_to_stack += 1;
+        }
+        assert!(
+            steps_to_stack > 1,
+            "{name}: stacking the sequence must take steps"
+        );
+        group.bench_function(name, |b| {
+            b.iter_custom(|iterations| {
+                let (mut total, mut done) = (Duration::ZERO, 0);
+                while done < iterations {
+                    servo.reset();
+                    let start = Instant::now();
+                    while done < iterations && !complete(&servo) {
+                        servo.step();
+                        done += 1;
+                    }
+                    total += start.elapsed();
                 }
                 total
             })
@@ -253,5 +295,5 @@ fn scaling(c: &mut Criterion) {
     bench_solve::<6>(c, "scaling_joints", &[8], 1);
 }
 
-criterion_group!(benches, steps, parts, scaling);
+criterion_group!(benches, steps, sequencing, parts, scaling);
 criterion_main!(benches);
