@@ -56,6 +56,7 @@ PARAMETERS = [
     "braking_rate",
     "lock_band",
     "restart_rate",
+    "restart_offset",
     "restart_centre_band",
     "restart_timeout",
     "singular_value_floor",

@@ -226,9 +226,14 @@ impl<const N: usize> StackController<N> {
         result: &ControllerStep<N>,
     ) -> Result<Option<EventKind>, ControllerError> {
         // D29: while a restart recentres joints, nothing is pushed or put back.
-        if let Phase::Recentring { joints, since } = self.phase {
+        if let Phase::Recentring {
+            joints,
+            centre,
+            since,
+        } = self.phase
+        {
             if time - since < self.parameters.restart_timeout
-                && !self.recentred(&joints, prediction.q)
+                && !self.recentred(&joints, &centre, prediction.q)
             {
                 return Ok(None);
             }
@@ -257,7 +262,7 @@ impl<const N: usize> StackController<N> {
             if let Some(kind) = self.escape(tasks, iteration, time) {
                 return Ok(Some(kind));
             }
-            return Ok(self.restart(law, tasks, cost, result, iteration, time));
+            return Ok(self.restart(law, tasks, cost, result, prediction.q, iteration, time));
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));

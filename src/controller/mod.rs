@@ -85,8 +85,9 @@
 //! above `ε_escape`; without a reserve, a stacked task's above `ε_achieved`), the run sits at a false equilibrium
 //! against the limit that sliding cannot leave. The controller **restarts** the sequence, once (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
-//! [`EventKind::Restart`] per task), the joints that were locked are driven towards the middle of their range in the
-//! first task's null space, and the next task is pushed as before once they are near it (or after
+//! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
+//! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
+//! the first task's null space, and the next task is pushed as before once they are near their targets (or after
 //! [`ControllerParameters::restart_timeout`]); the reserve task may escape again.
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
@@ -155,11 +156,14 @@ pub use parameters::{
 enum Phase<const N: usize> {
     /// Tasks are pushed, removed and put back (D5–D7, D28), the reserve task may escape (D23, D24).
     Sequencing,
-    /// D29: the sequence has restarted; the joints that were locked (`joints`) are driven to the middle of their range
-    /// in the first task's null space since `since` (s), and nothing is pushed or put back until they are there.
+    /// D29: the sequence has restarted; the joints that were locked (`joints`) are driven to their targets `centre`
+    /// (the middle of their range, past it for ranges wider than a half turn) in the first task's null space since
+    /// `since` (s), and nothing is pushed or put back until they are there.
     Recentring {
         /// The recentred joints.
         joints: [bool; N],
+        /// Each recentred joint's target `q̂_i` (the others' entries are not used).
+        centre: JointVector<N>,
         /// When the restart began (s).
         since: f64,
     },

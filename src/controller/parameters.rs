@@ -230,8 +230,13 @@ pub struct ControllerParameters {
     /// limits ([`StackController::with_joint_limits`]) and `κ > 0`; full method only (robust rule, removals
     /// allowed). Default 1 s⁻¹; `0` switches the restart off. Measured: theory D29.
     pub restart_rate: f64,
+    /// `s_restart`: where the restart of D29 drives each locked joint whose range exceeds a half turn: past the middle
+    /// of its range, away from the side it is on, by this fraction of a quarter turn,
+    /// `q̂_i = q̄_i − s_restart · sign(q_i − q̄_i) · π/2`; joints of narrower ranges go to their middle `q̄_i`. Default
+    /// 0.5 (π/4 past the middle); `0`: every joint to its middle; in `[0, 1)`. Measured: theory D29.
+    pub restart_offset: f64,
     /// `b_restart`: the recentring ends, and the sequence goes on, once every recentred joint is within
-    /// `b_restart Δq_i` of the middle of its range (D29; a fraction of the range, default 0.05, in `(0, 0.5]`).
+    /// `b_restart Δq_i` of its target `q̂_i` (D29; a fraction of the range, default 0.05, in `(0, 0.5]`).
     pub restart_centre_band: f64,
     /// `T_restart` (s): the recentring ends after this long even if a joint has not reached the middle of its range
     /// (D29; default 5 s, the stall timeout's).
@@ -278,6 +283,7 @@ impl Default for ControllerParameters {
             braking_rate: 5.0,
             lock_band: 1e-5,
             restart_rate: 1.0,
+            restart_offset: 0.5,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
             singular_value_floor: 3e-4,
@@ -430,6 +436,13 @@ impl ControllerParameters {
             v,
             in_range(v, 0.0, 1e4),
             "in [0, 1e4] s⁻¹ (0: no restart)",
+        )?;
+        let v = self.restart_offset;
+        check(
+            "restart_offset",
+            v,
+            (0.0..1.0).contains(&v),
+            "in [0, 1) (0: the middle of the range)",
         )?;
         let v = self.restart_centre_band;
         check(

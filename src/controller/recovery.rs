@@ -2,6 +2,7 @@
 //! against a limit with its recentring term.
 
 use super::*;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 impl<const N: usize> StackController<N> {
     /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
@@ -82,13 +83,16 @@ impl<const N: usize> StackController<N> {
     /// D29: at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with the whole sequence stacked, nothing out and no
     /// escape due, a joint locked at a limit and the goal not reached (the reserve task's error above `ε_escape`;
     /// without a reserve, a stacked task's above `ε_achieved`): every task but the first is taken out in one change,
-    /// once per run, and the locked joints are recentred ([`Self::recentring_cost`]) before the sequence goes on.
+    /// once per run, and the locked joints are driven past the middle of their ranges, away from the limits they were
+    /// locked at ([`Self::recentring_targets`], [`Self::recentring_cost`]), before the sequence goes on.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn restart(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
         result: &ControllerStep<N>,
+        q: &JointVector<N>,
         iteration: usize,
         time: f64,
     ) -> Option<EventKind> {
@@ -116,9 +120,11 @@ impl<const N: usize> StackController<N> {
             return None;
         }
         let first = *self.stacked.first()?;
+        let centre = self.recentring_targets(q)?;
         self.restarted = true;
         self.phase = Phase::Recentring {
             joints: locked,
+            centre,
             since: time,
         };
         self.escaped = false;
@@ -141,15 +147,37 @@ impl<const N: usize> StackController<N> {
         Some(EventKind::Restart)
     }
 
-    /// D29: every recentred joint within `b_restart Δq_i` of the middle of its range.
-    pub(super) fn recentred(&self, joints: &[bool; N], q: &JointVector<N>) -> bool {
+    /// D29: each joint's recentring target: the middle of its range `q̄_i`, past it for a joint whose range exceeds a
+    /// half turn, `q̂_i = q̄_i − s_restart · sign(q_i − q̄_i) · π/2` (away from the side it is on; a joint at its
+    /// middle stays there).
+    fn recentring_targets(&self, q: &JointVector<N>) -> Option<JointVector<N>> {
+        let limits = self.limits.as_ref()?;
+        let offset = self.parameters.restart_offset;
+        Some(JointVector::from_fn(|i, _| {
+            let (lower, upper) = (limits.lower()[i], limits.upper()[i]);
+            let middle = 0.5 * (lower + upper);
+            let side = q[i] - middle;
+            if upper - lower <= PI || side == 0.0 {
+                return middle;
+            }
+            middle - offset * side.signum() * FRAC_PI_2
+        }))
+    }
+
+    /// D29: every recentred joint within `b_restart Δq_i` of its target.
+    pub(super) fn recentred(
+        &self,
+        joints: &[bool; N],
+        centre: &JointVector<N>,
+        q: &JointVector<N>,
+    ) -> bool {
         let Some(limits) = &self.limits else {
             return true;
         };
         let band = self.parameters.restart_centre_band;
         (0..N).all(|i| {
             let (lower, upper) = (limits.lower()[i], limits.upper()[i]);
-            !joints[i] || (q[i] - 0.5 * (lower + upper)).abs() <= band * (upper - lower)
+            !joints[i] || (q[i] - centre[i]).abs() <= band * (upper - lower)
         })
     }
 
@@ -159,10 +187,10 @@ impl<const N: usize> StackController<N> {
         law: &ControlLaw,
         cost: Option<&'a dyn Cost<N>>,
     ) -> Option<RecentringCost<'a, N>> {
-        let Phase::Recentring { joints, .. } = self.phase else {
+        let Phase::Recentring { joints, centre, .. } = self.phase else {
             return None;
         };
-        let (limits, avoidance) = (self.limits.as_ref()?, cost?);
+        let avoidance = cost?;
         let kappa = law.avoidance_gain();
         if kappa <= 0.0 {
             return None;
@@ -170,15 +198,15 @@ impl<const N: usize> StackController<N> {
         let weight = self.parameters.restart_rate / kappa;
         Some(RecentringCost {
             avoidance,
-            centre: (limits.lower() + limits.upper()) * 0.5,
+            centre,
             weights: JointVector::from_fn(|i, _| if joints[i] { weight } else { 0.0 }),
         })
     }
 }
 
 /// D29: the avoidance cost `h` with the restart's recentring term in its gradient only,
-/// `∇h + W (q − q̄)` with `W = diag(k_restart/κ)` over the recentred joints and `q̄` the middle of each range: the law's
-/// term `−κ P^A_n (∇h + W (q − q̄))` moves each recentred joint towards `q̄` at the rate `k_restart`, within the stack's
+/// `∇h + W (q − q̂)` with `W = diag(k_restart/κ)` over the recentred joints and `q̂` their targets: the law's
+/// term `−κ P^A_n (∇h + W (q − q̂))` moves each recentred joint towards `q̂_i` at the rate `k_restart`, within the stack's
 /// null space. Its value is `h` alone: the controller's decisions (removal, re-insertion, prediction) see the
 /// avoidance cost, not the recentring.
 pub(super) struct RecentringCost<'a, const N: usize> {
@@ -216,5 +244,60 @@ impl<const N: usize> Cost<N> for RecentringCost<'_, N> {
 
     fn forbids(&self, q: &JointVector<N>) -> bool {
         self.avoidance.forbids(q)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::{FRAC_PI_4, TAU};
+
+    /// Joint 0 spans 2 rad (less than a half turn), joint 1 two turns, joint 2 4 rad (more than a half turn).
+    fn controller(offset: f64) -> StackController<3> {
+        let parameters = ControllerParameters {
+            restart_offset: offset,
+            ..ControllerParameters::default()
+        };
+        let limits = JointLimits::new(
+            JointVector::<3>::new(-1.0, -TAU, 0.0),
+            JointVector::<3>::new(1.0, TAU, 4.0),
+            0.1,
+        )
+        .unwrap();
+        StackController::new(parameters, &[])
+            .unwrap()
+            .with_joint_limits(limits)
+            .unwrap()
+    }
+
+    #[test]
+    fn joints_wider_than_a_half_turn_are_sent_past_the_middle_the_others_to_it() {
+        // Joint 0 near its upper limit, joint 1 on its lower side, joint 2 on its upper side.
+        let q = JointVector::<3>::new(0.9, -5.0, 3.9);
+        let targets = controller(0.5).recentring_targets(&q).unwrap();
+        // The narrow joint to its middle 0; the wide ones half a quarter turn (π/4) past their middles 0 and 2.
+        assert!(targets[0].abs() < 1e-12, "{targets}");
+        assert!((targets[1] - FRAC_PI_4).abs() < 1e-12, "{targets}");
+        assert!((targets[2] - (2.0 - FRAC_PI_4)).abs() < 1e-12, "{targets}");
+        // A wide joint exactly at its middle stays there; offset 0 gives the middles, as the restart first specified.
+        let at_middle = JointVector::<3>::new(0.9, 0.0, 2.0);
+        assert_eq!(
+            controller(0.5).recentring_targets(&at_middle).unwrap(),
+            JointVector::<3>::new(0.0, 0.0, 2.0)
+        );
+        let middles = controller(0.0).recentring_targets(&q).unwrap();
+        assert_eq!(middles, JointVector::<3>::new(0.0, 0.0, 2.0));
+    }
+
+    #[test]
+    fn a_joint_counts_as_recentred_at_its_target_not_at_the_middle() {
+        let controller = controller(0.5);
+        let joints = [true, false, false];
+        let target = JointVector::<3>::new(-0.5, 0.0, 0.0);
+        // The band is 0.05 of joint 0's 2 rad range: 0.1 rad around the target.
+        let near = JointVector::<3>::new(-0.45, 3.0, 3.9);
+        let middle = JointVector::<3>::new(0.0, 0.0, 2.0);
+        assert!(controller.recentred(&joints, &target, &near));
+        assert!(!controller.recentred(&joints, &target, &middle));
     }
 }

@@ -112,6 +112,7 @@ fn invalid_parameters_and_task_count() {
     });
     let restart = [
         ("restart_rate", [f64::NAN, -1.0, f64::INFINITY]),
+        ("restart_offset", [-0.1, 1.0, f64::NAN]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
         ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
         ("stall_timeout", [-1.0, f64::NAN, f64::INFINITY]),
@@ -122,6 +123,7 @@ fn invalid_parameters_and_task_count() {
             let mut parameters = ControllerParameters::default();
             match name {
                 "restart_rate" => parameters.restart_rate = value,
+                "restart_offset" => parameters.restart_offset = value,
                 "restart_centre_band" => parameters.restart_centre_band = value,
                 "stall_timeout" => parameters.stall_timeout = value,
                 _ => parameters.restart_timeout = value,
