@@ -83,8 +83,9 @@ impl<const N: usize> StackController<N> {
     /// D29: at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with the whole sequence stacked, nothing out and no
     /// escape due, a joint locked at a limit and the goal not reached (the reserve task's error above `ε_escape`;
     /// without a reserve, a stacked task's above `ε_achieved`): every task but the first is taken out in one change,
-    /// once per run, and the locked joints are driven past the middle of their ranges, away from the limits they were
-    /// locked at ([`Self::recentring_targets`], [`Self::recentring_cost`]), before the sequence goes on.
+    /// once per run, and the locked joints are driven to their targets — the middle of their ranges, past it for
+    /// ranges wider than a half turn ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence
+    /// goes on.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn restart(
         &mut self,
@@ -149,12 +150,16 @@ impl<const N: usize> StackController<N> {
 
     /// D29: each joint's recentring target: the middle of its range `q̄_i`, past it for a joint whose range exceeds a
     /// half turn, `q̂_i = q̄_i − s_restart · sign(q_i − q̄_i) · π/2` (away from the side it is on; a joint at its
-    /// middle stays there).
+    /// middle stays there). An unlimited joint (D18) is never locked and has no middle: its entry is `q_i`, so that
+    /// the recentring term's unweighted entries stay finite.
     fn recentring_targets(&self, q: &JointVector<N>) -> Option<JointVector<N>> {
         let limits = self.limits.as_ref()?;
         let offset = self.parameters.restart_offset;
         Some(JointVector::from_fn(|i, _| {
             let (lower, upper) = (limits.lower()[i], limits.upper()[i]);
+            if !(lower.is_finite() && upper.is_finite()) {
+                return q[i];
+            }
             let middle = 0.5 * (lower + upper);
             let side = q[i] - middle;
             if upper - lower <= PI || side == 0.0 {
@@ -299,5 +304,35 @@ mod tests {
         let middle = JointVector::<3>::new(0.0, 0.0, 2.0);
         assert!(controller.recentred(&joints, &target, &near));
         assert!(!controller.recentred(&joints, &target, &middle));
+    }
+
+    #[test]
+    fn an_unlimited_joint_leaves_the_recentring_term_finite() {
+        // Joint 1 is a continuous joint without limits (D18); joint 0 is the locked one.
+        let limits = JointLimits::new(
+            JointVector::<2>::new(-1.0, f64::NEG_INFINITY),
+            JointVector::<2>::new(1.0, f64::INFINITY),
+            0.1,
+        )
+        .unwrap();
+        let controller = StackController::new(ControllerParameters::default(), &[])
+            .unwrap()
+            .with_joint_limits(limits.clone())
+            .unwrap();
+        let q = JointVector::<2>::new(0.95, 12.0);
+        let centre = controller.recentring_targets(&q).unwrap();
+        assert_eq!(centre, JointVector::<2>::new(0.0, 12.0));
+        let cost = RecentringCost {
+            avoidance: &limits,
+            centre,
+            weights: JointVector::<2>::new(1.0, 0.0),
+        };
+        let mut gradient = JointVector::<2>::zeros();
+        cost.value_and_gradient(&q, &mut gradient).unwrap();
+        assert!(gradient.iter().all(|g| g.is_finite()), "{gradient}");
+        // The locked joint is pulled towards its middle: the recentring adds 1 · (0.95 − 0) to the limit term.
+        let mut alone = JointVector::<2>::zeros();
+        limits.value_and_gradient(&q, &mut alone).unwrap();
+        assert!((gradient[0] - alone[0] - 0.95).abs() < 1e-12);
     }
 }

@@ -4,7 +4,7 @@
 
 use servostack::controller::EventKind;
 use servostack::math::JointVector;
-use servostack::scenario::{RunKind, Scenario};
+use servostack::scenario::{RobotSpec, RunKind, Scenario};
 use servostack::sim::SummaryOnly;
 use servostack::study::{
     standard_families, Family, Perturbation, Study, StudyError, POSE_TOLERANCE_DEG,
@@ -270,6 +270,39 @@ fn sliding_along_the_limits_converges_from_more_uniform_starts() {
     );
     assert!(!sliding.contains(&"joint_limit"), "{sliding:?}");
     assert_no_draw_lost(&stopping, &sliding, "the lock");
+}
+
+/// D29 beside an unlimited joint (D18): `rail7` with its continuous roll left without limits. The runs that restart
+/// drive their locked joints to their targets while the unlimited joint, which has no middle, is left where it is,
+/// and the study runs to its end (the recentring term's entry for that joint was `0 · NaN`: the first restart stopped
+/// the study with a non-finite velocity).
+#[test]
+fn a_restart_beside_an_unlimited_joint_keeps_the_velocity_finite() {
+    let mut scenario = scenario("rail7_limits");
+    let RobotSpec::Builtin {
+        joint_limits: Some(limits),
+        ..
+    } = &mut scenario.robot
+    else {
+        panic!(
+            "rail7_limits.toml gives its joint limits: {:?}",
+            scenario.robot
+        );
+    };
+    (limits.lower[4], limits.upper[4]) = (f64::NEG_INFINITY, f64::INFINITY);
+    let study = Study::new(&scenario, families(&["uniform"]), 12, 61)
+        .unwrap()
+        .with_methods(&[RunKind::FullMethod]);
+    let result = study.run().unwrap();
+    let restarted = result.families[0]
+        .draws
+        .iter()
+        .filter(|d| d.methods[0].restart_take_outs > 0)
+        .count();
+    assert!(
+        restarted > 0,
+        "no draw restarted: the test does not reach D29"
+    );
 }
 
 /// D29 restart: from uniform starts on the square marker's Afma6, the sequence often comes to rest with the wrist
