@@ -117,7 +117,11 @@ proptest! {
             let x = DVector::from_column_slice(v.as_slice());
             for (k, ((j, desired), (optimum, image))) in levels.iter().zip(&reference).enumerate() {
                 let residual = (j * &x - desired).norm_squared();
-                prop_assert!((residual - optimum).abs() < 1e-7, "level {k}: residual² {residual}, least {optimum}");
+                // Never worse than the lexicographic optimum. It may be lower by what the levels above are allowed
+                // to miss their own optimum (their images within 1e−6, checked below): a lower level gains from
+                // that slack at first order (seen: 1.1e−7 below the reference on level 1).
+                prop_assert!(residual < optimum + 1e-7, "level {k}: residual² {residual}, least {optimum}");
+                prop_assert!(residual > optimum - 1e-6, "level {k}: residual² {residual} below the least {optimum}");
                 prop_assert!((j * &x - image).amax() < 1e-6, "level {k}: J q̇ = {} , reference {image}", j * &x);
             }
         }
