@@ -10,30 +10,23 @@ use servostack::math::JointVector;
 use servostack::stack::{solve_stack, StackError, StackParameters, StackWorkspace};
 use servostack::task::{TaskError, TaskJacobian, TaskValue};
 
+use crate::law_fixture::step_first_task;
+
 fn task(rows: usize) -> TaskValue<6> {
     let jacobian = TaskJacobian::<6>::from_fn(rows, |r, c| if r == c { 1.0 } else { 0.1 });
     TaskValue::from_parts("t", DVector::repeat(rows, 0.1), jacobian, 1.0).unwrap()
 }
 
+/// A step of task 0 alone with the stack unchanged: the velocity sent.
 fn step(
     law: &ControlLaw,
     workspace: &mut ControlWorkspace<6>,
     tasks: &[TaskValue<6>],
-    order: &[usize],
     q: &JointVector<6>,
     time: f64,
 ) -> Result<JointVector<6>, LawError> {
-    control_step(
-        law,
-        workspace,
-        tasks,
-        order,
-        None,
-        q,
-        time,
-        StackChange::Unchanged,
-    )
-    .map(|out| *out.velocity())
+    step_first_task(law, workspace, tasks, q, time, StackChange::Unchanged)
+        .map(|out| *out.velocity())
 }
 
 #[test]
@@ -44,7 +37,7 @@ fn non_finite_configuration() {
     let mut q = JointVector::<6>::zeros();
     q[3] = f64::NAN;
     assert!(matches!(
-        step(&law, &mut ws, &tasks, &[0], &q, 0.0),
+        step(&law, &mut ws, &tasks, &q, 0.0),
         Err(LawError::NonFiniteConfiguration { joint: 3, value }) if value.is_nan()
     ));
     let limits =
@@ -210,30 +203,20 @@ fn time_must_be_finite_and_not_go_back() {
     let law = ControlLaw::new(5.0, 0.0).unwrap();
     let mut ws = ControlWorkspace::new(&tasks);
     let q = JointVector::<6>::zeros();
-    control_step(
-        &law,
-        &mut ws,
-        &tasks,
-        &[0],
-        None,
-        &q,
-        2.0,
-        StackChange::Changed,
-    )
-    .unwrap();
+    step_first_task(&law, &mut ws, &tasks, &q, 2.0, StackChange::Changed).unwrap();
     assert_eq!(
-        step(&law, &mut ws, &tasks, &[0], &q, 1.0),
+        step(&law, &mut ws, &tasks, &q, 1.0),
         Err(LawError::InvalidTime {
             time: 1.0,
             switch_time: 2.0
         })
     );
     assert!(matches!(
-        step(&law, &mut ws, &tasks, &[0], &q, f64::NAN),
+        step(&law, &mut ws, &tasks, &q, f64::NAN),
         Err(LawError::InvalidTime { time, switch_time: 2.0 }) if time.is_nan()
     ));
     // A failed step leaves the law usable: the next valid step is finite.
-    assert!(step(&law, &mut ws, &tasks, &[0], &q, 2.5)
+    assert!(step(&law, &mut ws, &tasks, &q, 2.5)
         .unwrap()
         .iter()
         .all(|v| v.is_finite()));

@@ -5,21 +5,22 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 use proptest::prelude::*;
-use servostack::avoidance::{Cost, JointLimits};
 use servostack::law::hqp::{
     solve_hqp, HqpError, HqpParameters, HqpSolution, HqpWorkspace, LevelSolve,
 };
 use servostack::law::sns::{SnsBounds, SnsError};
-use servostack::law::{
-    control_step, AvoidanceProjection, ControlLaw, ControlWorkspace, LawError, StackChange,
-};
+use servostack::law::{ControlWorkspace, LawError};
 use servostack::linalg::VelocityInverse;
 use servostack::math::JointVector;
 use servostack::scenario::{RunKind, Scenario};
 use servostack::sim::Outcome;
 use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
-use servostack::task::{TaskJacobian, TaskValue};
+use servostack::task::TaskValue;
 
+use crate::law_fixture::{
+    limits3, one_row_and_full_rank_tasks, one_row_task, step_across_a_stack_change,
+    visp_projection_step_error,
+};
 use crate::stack_properties::random_tasks;
 
 fn hqp<const N: usize>(
@@ -222,60 +223,18 @@ fn least_norm_on_affine(
     Some(particular + basis * step)
 }
 
-fn limits3() -> JointLimits<3> {
-    JointLimits::new(Vector3::repeat(-1.0), Vector3::repeat(1.0), 0.1).unwrap()
-}
-
 /// With a full-rank task pushing the joints out of a tight box, the cascade keeps every velocity sent in the box and
 /// the stack change continuous: `q̇(τ⁺) = q̇(τ⁻)` when the last velocity lies in the box.
 #[test]
 fn the_cascade_law_is_continuous_at_a_stack_change_and_stays_in_its_box() {
-    let jacobian =
-        TaskJacobian::<3>::from_row_slice(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 1.0]);
-    let first =
-        TaskValue::from_parts("a", DVector::from_vec(vec![0.9, -0.4, 0.5]), jacobian, 0.5).unwrap();
-    let second = TaskValue::from_parts(
-        "b",
-        DVector::from_vec(vec![-0.3]),
-        TaskJacobian::<3>::from_row_slice(&[0.0, 1.0, 1.0]),
-        1.0,
-    )
-    .unwrap();
-    let tasks = [second, first];
-    let law = ControlLaw::new(10.0, 0.0).unwrap();
+    let tasks = one_row_and_full_rank_tasks();
     let mut workspace = ControlWorkspace::new(&tasks);
     let max = 0.1;
     let bounds = SnsBounds::new(limits3(), Vector3::repeat(max), 0.01).unwrap();
     workspace
         .solve_as_hierarchical_qp(bounds, &HqpParameters::default())
         .unwrap();
-    let q = Vector3::zeros();
-    let mut last = Vector3::zeros();
-    for step in 0..100 {
-        let (order, change): (&[usize], _) = match step {
-            0 => (&[1], StackChange::Changed),
-            1..50 => (&[1], StackChange::Unchanged),
-            50 => (&[0, 1], StackChange::Changed),
-            _ => (&[0, 1], StackChange::Unchanged),
-        };
-        let time = 0.01 * (step + 1) as f64;
-        let out =
-            control_step(&law, &mut workspace, &tasks, order, None, &q, time, change).unwrap();
-        assert!(
-            out.velocity().amax() <= max,
-            "step {step}: {}",
-            out.velocity()
-        );
-        if step == 50 {
-            assert!(
-                (out.velocity() - last).norm() < 1e-12,
-                "{} vs {last}",
-                out.velocity()
-            );
-            assert!((out.law() - last).norm() > 1e-3);
-        }
-        last = *out.velocity();
-    }
+    step_across_a_stack_change(&mut workspace, &tasks, max);
     let solution = workspace.hqp_solution().unwrap();
     // The full-rank task asks 0.45 on joint 0 alone: the box makes its level a QP, whose least residual is not zero.
     let levels = solution.levels();
@@ -291,13 +250,7 @@ fn the_cascade_law_is_continuous_at_a_stack_change_and_stays_in_its_box() {
 /// above: inside the box, and the run goes on. With the default budget the same level is solved and meets its bound.
 #[test]
 fn a_qp_not_solved_keeps_the_levels_above() {
-    let task = TaskValue::from_parts(
-        "x",
-        DVector::from_vec(vec![-0.45]),
-        TaskJacobian::<3>::from_row_slice(&[1.0, 0.0, 0.0]),
-        1.0,
-    )
-    .unwrap();
+    let task = one_row_task("x", -0.45, [1.0, 0.0, 0.0]);
     let tasks = [task];
     let (lower, upper) = (Vector3::repeat(-0.1), Vector3::repeat(0.1));
     let solve = |parameters: HqpParameters| {
@@ -349,13 +302,7 @@ fn bad_parameters_and_inputs_are_clear_errors() {
     };
     let err = HqpWorkspace::<3>::with_capacity(1, 1, &parameters).unwrap_err();
     assert_eq!(err, HqpError::NoIterations);
-    let task = TaskValue::from_parts(
-        "x",
-        DVector::from_vec(vec![0.2]),
-        TaskJacobian::<3>::from_row_slice(&[1.0, 0.0, 0.0]),
-        1.0,
-    )
-    .unwrap();
+    let task = one_row_task("x", 0.2, [1.0, 0.0, 0.0]);
     let tasks = [task];
     let mut workspace = HqpWorkspace::with_capacity(1, 1, &HqpParameters::default()).unwrap();
     let parameters = StackParameters::default();
@@ -419,28 +366,12 @@ fn bad_parameters_and_inputs_are_clear_errors() {
     .unwrap_err();
     assert!(matches!(err, HqpError::Stack(_)), "{err}");
     // The law with the cascade and a projection it has no counterpart for.
-    let law = ControlLaw::new(10.0, 0.5)
-        .unwrap()
-        .with_avoidance_projection(AvoidanceProjection::VISP)
-        .unwrap();
     let mut control = ControlWorkspace::new(&tasks);
     let bounds = SnsBounds::new(limits3(), Vector3::repeat(1.0), 0.01).unwrap();
     control
         .solve_as_hierarchical_qp(bounds, &HqpParameters::default())
         .unwrap();
-    let limits = limits3();
-    let cost: &dyn Cost<3> = &limits;
-    let err = control_step(
-        &law,
-        &mut control,
-        &tasks,
-        &[0],
-        Some(cost),
-        &Vector3::zeros(),
-        0.0,
-        StackChange::Changed,
-    )
-    .unwrap_err();
+    let err = visp_projection_step_error(&mut control, &tasks);
     assert_eq!(err, LawError::HqpNeedsKernelProjection);
 }
 

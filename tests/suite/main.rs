@@ -11,6 +11,7 @@
 //! Run one subject with `cargo test --test suite servo::` (a module name followed by `::`).
 
 mod counting_allocator;
+mod law_fixture;
 mod obstacle_fixture;
 #[path = "../../benches/common/servo_loop.rs"]
 mod servo_loop;

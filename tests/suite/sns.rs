@@ -5,18 +5,27 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 use proptest::prelude::*;
-use servostack::avoidance::{Cost, JointLimits};
+use servostack::avoidance::JointLimits;
 use servostack::law::sns::{solve_sns, LevelOutcome, SnsBounds, SnsError, SnsWorkspace};
-use servostack::law::{
-    control_step, AvoidanceProjection, ControlLaw, ControlWorkspace, LawError, StackChange,
-};
+use servostack::law::{ControlWorkspace, LawError};
 use servostack::math::JointVector;
 use servostack::scenario::{RunKind, Scenario};
 use servostack::sim::Outcome;
 use servostack::stack::{solve_stack, StackError, StackParameters, StackWorkspace};
-use servostack::task::{TaskJacobian, TaskValue};
+use servostack::task::TaskValue;
 
+use crate::law_fixture::{
+    limits3, one_row_and_full_rank_tasks, step_across_a_stack_change, visp_projection_step_error,
+};
 use crate::stack_properties::random_tasks;
+
+/// Asserts that `err` is a non-finite `what` on `joint`.
+fn assert_non_finite_joint_value(err: &SnsError, what: &str, joint: usize) {
+    assert!(
+        matches!(err, SnsError::NonFiniteJointValue { what: w, joint: j, .. } if *w == what && *j == joint),
+        "{err}"
+    );
+}
 
 fn sns<const N: usize>(
     tasks: &[TaskValue<N>],
@@ -255,10 +264,6 @@ fn level_scales_against_brute_force(
     scales
 }
 
-fn limits3() -> JointLimits<3> {
-    JointLimits::new(Vector3::repeat(-1.0), Vector3::repeat(1.0), 0.1).unwrap()
-}
-
 /// The box: near the upper limit the position bound `(q^max − q)/Δt` rules (and one step lands inside); far from the
 /// limits the velocity limit; with acceleration limits, the band around the last velocity and the braking distance.
 #[test]
@@ -330,58 +335,12 @@ fn past_a_limit_the_box_points_back() {
 /// `q̇(τ⁺) = q̇(τ⁻)` when the last velocity lies in the box, and every velocity sent stays in the box.
 #[test]
 fn the_sns_law_is_continuous_at_a_stack_change_and_stays_in_its_box() {
-    let jacobian =
-        TaskJacobian::<3>::from_row_slice(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 1.0]);
-    let first =
-        TaskValue::from_parts("a", DVector::from_vec(vec![0.9, -0.4, 0.5]), jacobian, 0.5).unwrap();
-    let second = TaskValue::from_parts(
-        "b",
-        DVector::from_vec(vec![-0.3]),
-        TaskJacobian::<3>::from_row_slice(&[0.0, 1.0, 1.0]),
-        1.0,
-    )
-    .unwrap();
-    let tasks = [second, first];
-    let law = ControlLaw::new(10.0, 0.0).unwrap();
+    let tasks = one_row_and_full_rank_tasks();
     let mut workspace = ControlWorkspace::new(&tasks);
     let max = 0.1;
     workspace
         .saturate_in_null_space(SnsBounds::new(limits3(), Vector3::repeat(max), 0.01).unwrap());
-    let q = Vector3::zeros();
-    let mut last = Vector3::zeros();
-    for step in 0..100 {
-        let (order, change): (&[usize], _) = match step {
-            0 => (&[1], StackChange::Changed),
-            1..50 => (&[1], StackChange::Unchanged),
-            50 => (&[0, 1], StackChange::Changed),
-            _ => (&[0, 1], StackChange::Unchanged),
-        };
-        let out = control_step(
-            &law,
-            &mut workspace,
-            &tasks,
-            order,
-            None,
-            &q,
-            0.01 * (step + 1) as f64,
-            change,
-        )
-        .unwrap();
-        assert!(
-            out.velocity().amax() <= max,
-            "step {step}: {}",
-            out.velocity()
-        );
-        if step == 50 {
-            assert!(
-                (out.velocity() - last).norm() < 1e-12,
-                "{} vs {last}",
-                out.velocity()
-            );
-            assert!((out.law() - last).norm() > 1e-3);
-        }
-        last = *out.velocity();
-    }
+    step_across_a_stack_change(&mut workspace, &tasks, max);
     let levels = workspace.sns_solution().unwrap().levels();
     assert_eq!(levels.len(), 2);
     // The full-rank task asks 0.45 on joint 0 alone: it cannot be met in a box of 0.1.
@@ -426,17 +385,7 @@ fn bad_bounds_and_inputs_are_clear_errors() {
             &mut hi,
         )
         .unwrap_err();
-    assert!(
-        matches!(
-            err,
-            SnsError::NonFiniteJointValue {
-                what: "configuration",
-                joint: 1,
-                ..
-            }
-        ),
-        "{err}"
-    );
+    assert_non_finite_joint_value(&err, "configuration", 1);
     let err = bounds
         .velocity_box(
             &Vector3::zeros(),
@@ -445,17 +394,7 @@ fn bad_bounds_and_inputs_are_clear_errors() {
             &mut hi,
         )
         .unwrap_err();
-    assert!(
-        matches!(
-            err,
-            SnsError::NonFiniteJointValue {
-                what: "previous velocity",
-                joint: 2,
-                ..
-            }
-        ),
-        "{err}"
-    );
+    assert_non_finite_joint_value(&err, "previous velocity", 2);
 
     let tasks = random_tasks::<3>(&[0.3, -0.7, 0.2, 0.5, 0.9], &[1]);
     let mut workspace = SnsWorkspace::with_capacity(1, 1);
@@ -485,17 +424,7 @@ fn bad_bounds_and_inputs_are_clear_errors() {
         &hi,
     )
     .unwrap_err();
-    assert!(
-        matches!(
-            err,
-            SnsError::NonFiniteJointValue {
-                what: "joint-space target",
-                joint: 0,
-                ..
-            }
-        ),
-        "{err}"
-    );
+    assert_non_finite_joint_value(&err, "joint-space target", 0);
     // An unknown task index is the stack's error.
     let err = solve_sns(&p, &mut workspace, &tasks, &[3], None, &lo, &hi).unwrap_err();
     assert!(matches!(err, SnsError::Stack(_)), "{err}");
@@ -515,24 +444,9 @@ fn bad_bounds_and_inputs_are_clear_errors() {
         "{err}"
     );
     // The law with SNS and a projection it has no counterpart for.
-    let law = ControlLaw::new(10.0, 0.5)
-        .unwrap()
-        .with_avoidance_projection(AvoidanceProjection::VISP)
-        .unwrap();
     let mut control = ControlWorkspace::new(&tasks);
     control.saturate_in_null_space(bounds);
-    let cost: &dyn Cost<3> = &limits;
-    let err = control_step(
-        &law,
-        &mut control,
-        &tasks,
-        &[0],
-        Some(cost),
-        &Vector3::zeros(),
-        0.0,
-        StackChange::Changed,
-    )
-    .unwrap_err();
+    let err = visp_projection_step_error(&mut control, &tasks);
     assert_eq!(err, LawError::SnsNeedsKernelProjection);
 }
 

@@ -10,6 +10,8 @@ use servostack::math::{JointMatrix, JointVector};
 use servostack::stack::{solve_stack, StackParameters, StackWorkspace};
 use servostack::task::{TaskJacobian, TaskValue};
 
+use crate::law_fixture::step_first_task;
+
 /// Random task values with the given row counts; entries in [−1, 1], gains in [0.2, 2] (also the SNS tests').
 pub(crate) fn random_tasks<const N: usize>(data: &[f64], rows: &[usize]) -> Vec<TaskValue<N>> {
     let mut cursor = data.iter().copied().cycle();
@@ -572,24 +574,12 @@ fn transition_decays_exponentially() {
     let kick = JointVector::<6>::from_fn(|i, _| 0.1 * i as f64 - 0.2);
     ws.reset(&kick);
     let start = 1.5;
-    control_step(
-        &law,
-        &mut ws,
-        &tasks,
-        &[0],
-        None,
-        &q,
-        start,
-        StackChange::Changed,
-    )
-    .unwrap();
+    step_first_task(&law, &mut ws, &tasks, &q, start, StackChange::Changed).unwrap();
     for dt in [0.01, 0.1, 0.3, 1.0] {
-        let out = control_step(
+        let out = step_first_task(
             &law,
             &mut ws,
             &tasks,
-            &[0],
-            None,
             &q,
             start + dt,
             StackChange::Unchanged,
