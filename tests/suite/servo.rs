@@ -10,8 +10,8 @@
 //! - [`errors`]: bad measurements and configurations are named errors, and a bad call leaves no trace.
 //!
 //! This file holds what they share, and what `servo_acceleration`, `servo_methods` and `servo_observer` use too: the
-//! paper scenario and its configuration, the simulated [`Plant`], the closed loop [`run_loop`] and the
-//! [`RaisedWristLimit`] setup.
+//! paper scenario and its configuration, the simulated [`Plant`], the closed loop [`run_loop`], the
+//! [`RaisedWristLimit`] setup with its braking check, and the check of the velocity fed back at a stack change.
 
 mod convergence;
 mod errors;
@@ -182,6 +182,16 @@ pub(crate) fn run_loop(
     outputs
 }
 
+/// Asserts `q̇(τ⁺) = q̇_sent(τ⁻)` at a stack change: the controller's velocity at `at` is the one sent at `before`.
+pub(crate) fn assert_fed_back_at_change(before: &ServoOutput<6>, at: &ServoOutput<6>) {
+    let gap = (at.unscaled_velocity - before.velocity).norm();
+    assert!(
+        gap <= 1e-12 * (1.0 + before.velocity.norm()),
+        "change at {}: gap {gap}",
+        at.iteration
+    );
+}
+
 /// The classical task of the paper scenario through the façade, with the last wrist joint's lower limit raised above
 /// its goal (−0.2 rad against −0.397): the task drives that joint into its limit.
 pub(crate) struct RaisedWristLimit {
@@ -212,6 +222,25 @@ impl RaisedWristLimit {
             scene: experiment.scene,
             camera,
             start: experiment.start,
+        }
+    }
+
+    /// Asserts the braking of D25 on `output` at `q`: every joint keeps `|q̇_i| ≤ ξ d_i`, with `d_i` its distance to the
+    /// limit it moves towards and `ξ` this setup's braking rate.
+    pub(crate) fn assert_braked(&self, output: &ServoOutput<6>, q: &JointVector<6>) {
+        let rate = self.config.controller.braking_rate;
+        let (lower, upper) = (self.limits.lower(), self.limits.upper());
+        for i in 0..6 {
+            let v = output.velocity[i];
+            let distance = if v > 0.0 {
+                upper[i] - q[i]
+            } else {
+                q[i] - lower[i]
+            };
+            assert!(
+                v.abs() <= rate * distance * (1.0 + 1e-12),
+                "joint {i}: {v} at {distance} from its limit"
+            );
         }
     }
 

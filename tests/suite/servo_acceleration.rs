@@ -4,7 +4,9 @@
 //! deceleration, and the runs still converge.
 
 use crate::counting_allocator::allocations_during;
-use crate::servo::{distorted_camera, paper, paper_config, Plant, RaisedWristLimit};
+use crate::servo::{
+    assert_fed_back_at_change, distorted_camera, paper, paper_config, Plant, RaisedWristLimit,
+};
 use proptest::prelude::*;
 use servostack::avoidance::braking_speed;
 use servostack::controller::{ControllerParameters, EventKind};
@@ -161,12 +163,7 @@ fn the_continuity_identity_holds_for_the_acceleration_limited_velocity() {
         if before.acceleration_scale < 1.0 && held_back > 1e-6 {
             limited_changes += 1;
         }
-        let gap = (at.unscaled_velocity - before.velocity).norm();
-        assert!(
-            gap <= 1e-12 * (1.0 + before.velocity.norm()),
-            "change at {}: gap {gap}",
-            at.iteration
-        );
+        assert_fed_back_at_change(before, at);
     }
     assert!(changes >= 3, "{changes} stack changes");
     assert!(
@@ -182,8 +179,6 @@ fn the_continuity_identity_holds_for_the_acceleration_limited_velocity() {
 #[test]
 fn the_braking_stays_within_the_acceleration_limits() {
     let setup = RaisedWristLimit::new();
-    let rate = setup.config.controller.braking_rate;
-    let (lower, upper) = (*setup.limits.lower(), *setup.limits.upper());
     for limits in [
         JointVector::from([0.05, 0.05, 0.05, 0.3, 0.3, 0.3]),
         JointVector::from([1.0, 1.0, 1.0, 0.3, 0.3, 0.05]),
@@ -198,18 +193,7 @@ fn the_braking_stays_within_the_acceleration_limits() {
             first = false;
             largest = largest.max(check_step(&sent, output, &limits, dt));
             clamped += usize::from(output.stopping_clamp);
-            for i in 0..6 {
-                let v = output.velocity[i];
-                let distance = if v > 0.0 {
-                    upper[i] - q[i]
-                } else {
-                    q[i] - lower[i]
-                };
-                assert!(
-                    v.abs() <= rate * distance * (1.0 + 1e-12),
-                    "joint {i}: {v} at {distance} from its limit"
-                );
-            }
+            setup.assert_braked(output, q);
             braked += usize::from(output.scaled);
             locked += usize::from(output.locked[5]);
             sent = output.velocity;

@@ -2,7 +2,10 @@
 //! sent is fed back so that it stays continuous at stack changes while saturated, the servo brakes before a hard limit
 //! (theory D25) and slides along it with the joint locked (D26).
 
-use super::{distorted_camera, paper, paper_config, run_loop, Plant, RaisedWristLimit};
+use super::{
+    assert_fed_back_at_change, distorted_camera, paper, paper_config, run_loop, Plant,
+    RaisedWristLimit,
+};
 use servostack::controller::ControllerParameters;
 use servostack::math::JointVector;
 use servostack::servo::VisualServo;
@@ -94,11 +97,7 @@ fn the_sent_velocity_is_fed_back_and_stays_continuous_at_stack_changes() {
             assert!((before.unscaled_velocity - before.velocity).norm() > 1e-6);
         }
         // q̇(τ⁺) = q̇_sent(τ⁻): the controller's velocity at the change is the one the robot received.
-        let gap = (at.unscaled_velocity - before.velocity).norm();
-        assert!(
-            gap <= 1e-12 * (1.0 + before.velocity.norm()),
-            "change at {k}: gap {gap}"
-        );
+        assert_fed_back_at_change(before, at);
         // The sent velocity's step at the change is no larger than the steps around it without a change.
         let jump = steps[k - 1];
         let around = steps[k.saturating_sub(6)..k - 1]
@@ -122,9 +121,7 @@ fn the_sent_velocity_is_fed_back_and_stays_continuous_at_stack_changes() {
 #[test]
 fn the_servo_brakes_before_a_hard_limit() {
     let setup = RaisedWristLimit::new();
-    let rate = setup.config.controller.braking_rate;
-    assert!(rate.is_finite());
-    let (lower, upper) = (*setup.limits.lower(), *setup.limits.upper());
+    assert!(setup.config.controller.braking_rate.is_finite());
     let mut unbraked = setup.config.clone();
     unbraked.controller.braking_rate = f64::INFINITY;
     assert!(
@@ -133,18 +130,7 @@ fn the_servo_brakes_before_a_hard_limit() {
     );
     let mut braked = 0;
     let (crossed, _) = setup.run(setup.config.clone(), &mut |_, output, q, _| {
-        for i in 0..6 {
-            let v = output.velocity[i];
-            let distance = if v > 0.0 {
-                upper[i] - q[i]
-            } else {
-                q[i] - lower[i]
-            };
-            assert!(
-                v.abs() <= rate * distance * (1.0 + 1e-12),
-                "joint {i}: {v} at {distance} from its limit"
-            );
-        }
+        setup.assert_braked(output, q);
         braked += usize::from(output.scaled);
     });
     assert!(!crossed, "a limit was crossed with the braking");
