@@ -8,8 +8,22 @@
 //!   paper's literal rule;
 //! - [`steps`]: the continuity at every change (D1, D14), the early push (D28) and the contract of a step.
 //!
-//! This file holds what they share: the three tasks on three joints, the joint limits, the closed-loop [`Run`] and
-//! the continuity check.
+//! This file holds what they share: the three tasks on three joints, the joint limits, the closed-loop [`Run`], the
+//! continuity check, and the zero gradient of the flat stand-in costs.
+
+/// `Cost::value_and_gradient` for a cost that is flat wherever it is defined: a zero gradient and the cost's `value`.
+macro_rules! flat_value_and_gradient {
+    () => {
+        fn value_and_gradient(
+            &self,
+            q: &JointVector<3>,
+            gradient: &mut JointVector<3>,
+        ) -> Result<f64, CostError> {
+            gradient.fill(0.0);
+            self.value(q)
+        }
+    };
+}
 
 mod fallback;
 mod removal;
@@ -87,6 +101,11 @@ impl Run {
             .iter()
             .find(|&&(_, k, t)| k == kind && t == task)
             .map(|e| e.0)
+    }
+
+    /// The number of events of `kind`.
+    fn count(&self, kind: EventKind) -> usize {
+        self.events.iter().filter(|e| e.1 == kind).count()
     }
 
     /// No limit was hit before the first fallback (or in the whole run without one): the removals kept the limits.

@@ -276,11 +276,7 @@ fn a_task_comes_back_when_its_absence_is_predicted_to_raise_the_guard() {
         without_task > 0.0 && with_task < without_task,
         "guard predicted {with_task} with the task, {without_task} without"
     );
-    let removals = run
-        .events
-        .iter()
-        .filter(|e| e.1 == EventKind::Remove)
-        .count();
+    let removals = run.count(EventKind::Remove);
     assert!(
         removals <= parameters.max_removals as usize,
         "events: {:?}",
@@ -300,16 +296,8 @@ fn the_paper_rule_chatters_on_an_unachievable_task() {
         },
         1.0,
     );
-    let removals = run
-        .events
-        .iter()
-        .filter(|e| e.1 == EventKind::Remove)
-        .count();
-    let reinsertions = run
-        .events
-        .iter()
-        .filter(|e| e.1 == EventKind::Reinsert)
-        .count();
+    let removals = run.count(EventKind::Remove);
+    let reinsertions = run.count(EventKind::Reinsert);
     assert!(
         removals >= 10 && reinsertions >= 10,
         "events: {:?}",

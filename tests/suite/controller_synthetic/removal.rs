@@ -47,14 +47,7 @@ impl Cost<3> for BlindPastJointZero {
             Ok(0.0)
         }
     }
-    fn value_and_gradient(
-        &self,
-        q: &JointVector<3>,
-        gradient: &mut JointVector<3>,
-    ) -> Result<f64, CostError> {
-        gradient.fill(0.0);
-        self.value(q)
-    }
+    flat_value_and_gradient!();
     fn name(&self) -> &str {
         "blind"
     }

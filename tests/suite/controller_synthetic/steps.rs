@@ -334,14 +334,7 @@ impl Cost<3> for DefinedOnlyAt {
             })
         }
     }
-    fn value_and_gradient(
-        &self,
-        q: &JointVector<3>,
-        gradient: &mut JointVector<3>,
-    ) -> Result<f64, CostError> {
-        gradient.fill(0.0);
-        self.value(q)
-    }
+    flat_value_and_gradient!();
 }
 
 /// A step that fails after the law ran (here, in the prediction) sends nothing: the next change still blends from
