@@ -26,6 +26,15 @@ fn run(kind: RunKind) -> Run<6> {
     experiment.run(&scenario.settings(), kind).unwrap()
 }
 
+/// Asserts that the run ends with the four tasks stacked and never left the limits.
+fn assert_every_task_stacked_within_the_limits(run: &Run<6>) {
+    assert_eq!(
+        run.stacked_at_end(),
+        ["centroid", "angle", "area", "third_order"]
+    );
+    assert!(run.min_normalized_margin() >= 0.0);
+}
+
 /// The names of the tasks stacked at the iteration where the run stopped on a joint limit.
 fn stacked_at_hit(run: &Run<6>) -> Vec<&str> {
     match &run.outcome {
@@ -300,11 +309,7 @@ fn hqp_converges_within_the_limits_with_every_task_stacked() {
         "{:?}",
         run.outcome
     );
-    assert_eq!(
-        run.stacked_at_end(),
-        ["centroid", "angle", "area", "third_order"]
-    );
-    assert!(run.min_normalized_margin() >= 0.0);
+    assert_every_task_stacked_within_the_limits(&run);
 }
 
 /// SNS, the extra row of the experiment (not from the paper; theory §13): the same pushes as the stack with gradient,
@@ -318,11 +323,7 @@ fn sns_holds_joint_2_on_its_limit_with_the_fourth_task_unmet() {
         "{:?}",
         run.outcome
     );
-    assert_eq!(
-        run.stacked_at_end(),
-        ["centroid", "angle", "area", "third_order"]
-    );
-    assert!(run.min_normalized_margin() >= 0.0);
+    assert_every_task_stacked_within_the_limits(&run);
     let (_, experiment) = scenario();
     let end = experiment
         .scene

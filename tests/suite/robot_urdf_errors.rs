@@ -153,18 +153,23 @@ fn mimic_joint_on_the_path_follows_its_leader() {
     );
 }
 
+/// A revolute joint j2 from b to c, mimicking `leader`.
+fn j2_mimicking(leader: &str) -> String {
+    joint(
+        "j2",
+        "revolute",
+        "b",
+        "c",
+        &format!(r#"{LIMIT}<mimic joint="{leader}"/>"#),
+    )
+}
+
 /// a → b (j1) → c (j2, mimic of `leader`), with extra joints.
 fn mimic_of(leader: &str, extra_joints: &str) -> String {
     urdf(&format!(
         "{}{}{extra_joints}",
         joint("j1", "revolute", "a", "b", LIMIT),
-        joint(
-            "j2",
-            "revolute",
-            "b",
-            "c",
-            &format!(r#"{LIMIT}<mimic joint="{leader}"/>"#)
-        ),
+        j2_mimicking(leader),
     ))
 }
 
@@ -225,13 +230,7 @@ fn mimic_of_a_joint_off_the_path_or_fixed() {
     let xml = urdf(&format!(
         "{}{}",
         joint("j1", "fixed", "a", "b", ""),
-        joint(
-            "j2",
-            "revolute",
-            "b",
-            "c",
-            &format!(r#"{LIMIT}<mimic joint="j1"/>"#)
-        ),
+        j2_mimicking("j1"),
     ));
     assert!(matches!(
         load::<0>(&xml, "a", "c"),
@@ -244,13 +243,7 @@ fn mimic_before_an_independent_joint() {
     let xml = urdf(&format!(
         "{}{}{}",
         joint("j1", "revolute", "a", "b", LIMIT),
-        joint(
-            "j2",
-            "revolute",
-            "b",
-            "c",
-            &format!(r#"{LIMIT}<mimic joint="j1"/>"#)
-        ),
+        j2_mimicking("j1"),
         joint("j3", "revolute", "c", "d", LIMIT),
     ));
     assert_eq!(

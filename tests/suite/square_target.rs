@@ -4,8 +4,8 @@
 
 use nalgebra::{Dyn, OMatrix, U6};
 use servostack::feature::{FeatureError, InteractionSource, Observation};
-use servostack::scenario::{RunKind, Scenario};
-use servostack::sim::Outcome;
+use servostack::scenario::{Experiment, RunKind, Scenario};
+use servostack::sim::{Outcome, View};
 use servostack::task::TaskError;
 use servostack::visual_task::{paper_tasks, paper_tasks_with, FourthTask, VisualTask};
 use std::path::Path;
@@ -16,6 +16,16 @@ fn scenario() -> Scenario {
         "/assets/scenarios/square_marker_afma6.toml"
     );
     Scenario::from_file(Path::new(path)).unwrap()
+}
+
+/// The scenario's experiment and the camera's view of the target from the goal pose.
+fn goal_view(scenario: &Scenario) -> (Experiment<6>, View<6>) {
+    let experiment = scenario.experiment::<6>().unwrap();
+    let view = experiment
+        .scene
+        .view_from(&experiment.desired_camera_from_target)
+        .unwrap();
+    (experiment, view)
 }
 
 /// The stacked interaction matrix `[L_1; L_2; L_3; L_4]` (6 × 6) of the tasks on `obs`.
@@ -36,11 +46,7 @@ fn stacked_interaction(tasks: &[VisualTask], obs: &Observation<'_>) -> OMatrix<f
 #[test]
 fn square_seen_head_on_needs_the_replacement_and_keeps_full_rank() {
     let scenario = scenario();
-    let experiment = scenario.experiment::<6>().unwrap();
-    let view = experiment
-        .scene
-        .view_from(&experiment.desired_camera_from_target)
-        .unwrap();
+    let (experiment, view) = goal_view(&scenario);
     let desired = view.observation().unwrap();
     let depth = experiment.desired_camera_from_target.translation.z;
     // The paper's tasks are undefined there (D9).
@@ -81,11 +87,7 @@ fn auto_keeps_the_paper_features_on_a_rectangle() {
         "/assets/scenarios/paper_afma6.toml"
     );
     let scenario = Scenario::from_file(Path::new(path)).unwrap();
-    let experiment = scenario.experiment::<6>().unwrap();
-    let view = experiment
-        .scene
-        .view_from(&experiment.desired_camera_from_target)
-        .unwrap();
+    let (_, view) = goal_view(&scenario);
     let desired = view.observation().unwrap();
     assert_eq!(
         FourthTask::Auto.resolve(&desired).unwrap(),
