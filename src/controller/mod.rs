@@ -83,7 +83,7 @@
 //! When the whole sequence is stacked, nothing is out, no escape is due and the robot has come to rest (`‖q̇_n‖ <
 //! ε_add`, the paper's threshold) with a joint **locked** at a limit and the goal not reached (the reserve task's error
 //! above `ε_escape`; without a reserve, a stacked task's above `ε_achieved`), the run sits at a false equilibrium
-//! against the limit that sliding cannot leave. The controller **restarts** the sequence, once (D29,
+//! against the limit that sliding cannot leave. The controller **restarts** the sequence, each time (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
 //! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
@@ -209,8 +209,6 @@ pub struct StackController<const N: usize> {
     fallback: bool,
     /// The joint limits given to [`Self::with_joint_limits`]: the lock of D26, the restart of D29.
     limits: Option<JointLimits<N>>,
-    /// D29: whether the sequence has been restarted (once per run).
-    restarted: bool,
     change_pending: bool,
     last_change_time: f64,
     /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
@@ -306,7 +304,6 @@ impl<const N: usize> StackController<N> {
             fallback: false,
             phase: Phase::Sequencing,
             limits: None,
-            restarted: false,
             change_pending: false,
             last_change_time: 0.0,
             early_push_reference: None,

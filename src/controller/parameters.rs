@@ -224,7 +224,7 @@ pub struct ControllerParameters {
     /// `[0, 0.5)`.
     pub lock_band: f64,
     /// `k_restart` (s⁻¹), the restart of D29: at rest against a limit short of the goal, with every task stacked, the
-    /// sequence restarts from its first task, once, and the joints that were locked are driven towards the middle of
+    /// sequence restarts from its first task (each time), and the joints that were locked are driven towards the middle of
     /// their range at this rate, `q̇_i = −k_restart (q_i − q̄_i)` before the projection into the first task's null
     /// space (the law's secondary term becomes the gradient of `h + ½ (k_restart/κ) Σ (q_i − q̄_i)²`). Needs the
     /// limits ([`StackController::with_joint_limits`]) and `κ > 0`; full method only (robust rule, removals

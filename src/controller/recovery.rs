@@ -83,7 +83,7 @@ impl<const N: usize> StackController<N> {
     /// D29: at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with the whole sequence stacked, nothing out and no
     /// escape due, a joint locked at a limit and the goal not reached (the reserve task's error above `ε_escape`;
     /// without a reserve, a stacked task's above `ε_achieved`): every task but the first is taken out in one change,
-    /// once per run, and the locked joints are driven to their targets — the middle of their ranges, past it for
+    /// each time the run comes to rest so, and the locked joints are driven to their targets — the middle of their ranges, past it for
     /// ranges wider than a half turn ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence
     /// goes on.
     #[allow(clippy::too_many_arguments)]
@@ -99,7 +99,6 @@ impl<const N: usize> StackController<N> {
     ) -> Option<EventKind> {
         let parameters = &self.parameters;
         if parameters.restart_rate <= 0.0
-            || self.restarted
             || !parameters.allow_removal
             || parameters.rule != DecisionRule::Robust
             || self.limits.is_none()
@@ -122,7 +121,6 @@ impl<const N: usize> StackController<N> {
         }
         let first = *self.stacked.first()?;
         let centre = self.recentring_targets(q)?;
-        self.restarted = true;
         self.phase = Phase::Recentring {
             joints: locked,
             centre,

@@ -4,11 +4,11 @@
 
 use servostack::controller::EventKind;
 use servostack::math::JointVector;
-use servostack::scenario::{RobotSpec, RunKind, Scenario};
+use servostack::scenario::{RobotSpec, RunKind, Scenario, Zoo};
 use servostack::sim::SummaryOnly;
 use servostack::study::{
-    standard_families, Family, Perturbation, Study, StudyError, POSE_TOLERANCE_DEG,
-    POSE_TOLERANCE_M,
+    optional_families, standard_families, Family, Perturbation, Study, StudyError,
+    POSE_TOLERANCE_DEG, POSE_TOLERANCE_M,
 };
 use std::path::Path;
 
@@ -307,7 +307,7 @@ fn a_restart_beside_an_unlimited_joint_keeps_the_velocity_finite() {
 
 /// D29 restart: from uniform starts on the square marker's Afma6, the sequence often comes to rest with the wrist
 /// locked at its lower limit, short of the goal (a false equilibrium against the limit that sliding cannot leave).
-/// Restarting the sequence there, once, with the locked joint recentred first (the default), converges from more
+/// Restarting the sequence there, with the locked joint recentred first (the default), converges from more
 /// draws, and loses none that converged without it.
 #[test]
 fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
@@ -316,12 +316,12 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     let mut without_restart = scenario.clone();
     without_restart.controller.restart_rate = 0.0;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 24, 3);
-    let (restarting, once) = (outcomes(&scenario), outcomes(&without_restart));
+    let (restarting, without) = (outcomes(&scenario), outcomes(&without_restart));
     assert!(
-        count(&restarting, "converged") >= count(&once, "converged") + 3,
-        "converged: {restarting:?} restarting, {once:?} without"
+        count(&restarting, "converged") >= count(&without, "converged") + 3,
+        "converged: {restarting:?} restarting, {without:?} without"
     );
-    assert_no_draw_lost(&once, &restarting, "the restart");
+    assert_no_draw_lost(&without, &restarting, "the restart");
     // One of the draws only the restart brings to the goal, run again: every task but the first is taken out in
     // one change, which the transition of D1 keeps continuous, and the sequence is complete at the end.
     let study = Study::new(&scenario, families(&["uniform"]), 24, 3)
@@ -354,7 +354,7 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     assert!(summary.median_iterations_to_converge.unwrap() <= p95 as f64 && p95 <= result.budget);
     let rescued = draws
         .iter()
-        .zip(&once)
+        .zip(&without)
         .find(|(d, without)| d.methods[0].outcome == "converged" && **without != "converged")
         .map(|(d, _)| d)
         .unwrap();
@@ -390,6 +390,53 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
         restart.law_jump
     );
     assert_eq!(run.stacked_at_end().len(), 4);
+}
+
+/// D29 is made each time a run rests against a limit short of the goal, not once: on the zoo's UR3 (its generated
+/// scenario, with the zoo installed) the replay after a first restart often rests again, at one pose with the shoulder
+/// lift locked at the limit the generator set, and restarting from there converges. Some of its `feasible` draws
+/// converge after two restarts or more (made once per run, none could). Without `SERVOSTACK_ZOO_DIR` the test says so
+/// and checks nothing more.
+#[test]
+fn a_replay_that_rests_against_a_limit_again_restarts_again() {
+    let Some(dir) = std::env::var_os("SERVOSTACK_ZOO_DIR") else {
+        eprintln!("SERVOSTACK_ZOO_DIR is not set (scripts/install_zoo.sh prints it): the zoo's UR3 is not loaded");
+        return;
+    };
+    let zoo =
+        Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap();
+    let scenario = Zoo::scenario(zoo.arm("ur3").unwrap(), Path::new(&dir)).unwrap();
+    let study = Study::new(&scenario, optional_families(), 40, 75)
+        .unwrap()
+        .with_methods(&[RunKind::FullMethod]);
+    let result = study.run().unwrap();
+    let mut experiment = scenario.experiment::<6>().unwrap();
+    let mut restarted_twice = 0;
+    for draw in &result.families[0].draws {
+        let method = &draw.methods[0];
+        if !(method.converged() && method.restart_take_outs > 0) {
+            continue;
+        }
+        experiment.start = JointVector::<6>::from_column_slice(&draw.start);
+        let run = experiment
+            .run_with(&scenario.settings(), RunKind::FullMethod, &mut SummaryOnly)
+            .unwrap();
+        assert_eq!(run.outcome.name(), "converged");
+        let mut restarts: Vec<usize> = run
+            .event_continuity()
+            .into_iter()
+            .filter(|e| e.kind == EventKind::Restart)
+            .map(|e| e.iteration)
+            .collect();
+        restarts.dedup();
+        if restarts.len() >= 2 {
+            restarted_twice += 1;
+        }
+    }
+    assert!(
+        restarted_twice >= 3,
+        "{restarted_twice} of 40 draws converged after two restarts or more"
+    );
 }
 
 /// D25 braking: on the UR5e, whose elbow is fast for its 0.55 rad range, a third of the full method's uniform runs
