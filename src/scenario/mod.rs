@@ -73,7 +73,7 @@ mod text_bounds;
 mod zoo;
 
 pub use experiment::{Experiment, ExperimentBuilder};
-pub use generate::{generate, ArmSpec, MIN_GOAL_SINGULAR_VALUE};
+pub use generate::{generate, ArmSpec, GAIN_FACTOR, MIN_GOAL_SINGULAR_VALUE};
 pub use settings::Settings;
 pub use spec::{
     AdaptiveGainSpec, AvoidanceSpec, CameraSpec, DesiredSpec, InteractionKind, JointLimitsSpec,

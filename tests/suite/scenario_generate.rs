@@ -7,7 +7,7 @@
 use servostack::robot::KinematicsWorkspace;
 use servostack::scenario::{
     generate, with_joint_count, ArmSpec, ForJointCount, RobotSpec, RunKind, Scenario,
-    ScenarioError, Zoo,
+    ScenarioError, Zoo, GAIN_FACTOR,
 };
 use std::path::Path;
 
@@ -115,6 +115,41 @@ fn the_scenario_generated_for_a_built_in_arm_is_the_papers_story() {
     Checks(&ur5e).call::<6>();
     // The full method, on the arm the scenario was written for by hand, converges from the generated start.
     assert_eq!(outcome::<6>(&ur5e, None, RunKind::FullMethod), "converged");
+}
+
+/// The generated scenario runs the template's laws `GAIN_FACTOR` times faster: with its gains divided back, the
+/// classical law (a law without a clock) converges from the same start near the goal in about `GAIN_FACTOR` times as
+/// many periods, and from the generated start meets the same limit.
+#[test]
+fn the_generated_scenario_runs_the_templates_laws_faster() {
+    let fast = generate(&builtin("ur5e", Some(ur5e_goal())), None).unwrap();
+    let mut slow = fast.clone();
+    slow.tasks.gains = slow.tasks.gains.map(|gain| gain / GAIN_FACTOR);
+    slow.tasks.classical_gain /= GAIN_FACTOR;
+    slow.avoidance.gain /= GAIN_FACTOR;
+    let near: Vec<f64> = ur5e_goal()
+        .iter()
+        .enumerate()
+        .map(|(i, q)| q + if i % 2 == 0 { 0.02 } else { -0.02 })
+        .collect();
+    let periods = |scenario: &Scenario| {
+        let mut scenario = scenario.clone();
+        scenario.start.joints = near.clone();
+        let run = scenario.run::<6>(RunKind::Classical).unwrap();
+        assert_eq!(run.outcome.name(), "converged");
+        run.records.len() as f64
+    };
+    let ratio = periods(&slow) / periods(&fast);
+    assert!(
+        (ratio / GAIN_FACTOR - 1.0).abs() < 0.05,
+        "{ratio} against {GAIN_FACTOR}"
+    );
+    for scenario in [&fast, &slow] {
+        assert_eq!(
+            outcome::<6>(scenario, None, RunKind::Classical),
+            "joint_limit"
+        );
+    }
 }
 
 /// The built-in 7-joint chain `rail7` is a test chain whose wrist axis is tilted off its camera's optical axis: from
