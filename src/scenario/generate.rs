@@ -61,8 +61,9 @@ pub struct ArmSpec {
 /// avoidance (their gains times [`GAIN_FACTOR`]), the controller and the simulation. What is made for the arm, in this
 /// order:
 ///
-/// 1. **Limits**: the chain's own, an unlimited (continuous) joint given `[−π, π]` (the joint-limit cost needs finite
-///    limits); written out in `robot.joint_limits`.
+/// 1. **Limits**: the chain's own, an unlimited (continuous) joint given `[−π, π]`, one turn about its goal value 0
+///    (left unlimited, or given a little more or less than a turn, the zoo's Kinova and PR2 gain in some studies and
+///    lose in others: docs/theory_notes.md, D29); written out in `robot.joint_limits`.
 /// 2. **Goal** `q*`: the middle of every joint's range (0 for a continuous joint), or the arm's `goal_joints`. A goal
 ///    where the camera Jacobian `cVe · eJe` loses rank (a stretched elbow, aligned wrist axes) is refused: the
 ///    classical law has no meaning there.
