@@ -251,6 +251,15 @@ impl<const N: usize> StackController<N> {
         } else {
             parameters.settle_velocity
         };
+        // D29: with the sequence complete and nothing out, a run whose stacked error has stopped falling restarts,
+        // whether it is at rest or creeping along a limit.
+        if self.removed.is_empty() && self.next_push >= self.sequence_len() {
+            if let Some(kind) =
+                self.restart_without_progress(law, tasks, cost, prediction.q, iteration, time)
+            {
+                return Ok(Some(kind));
+            }
+        }
         if !self.settled(law, time, result.stack_velocity_norm, epsilon_add) {
             return self.push_early(law, tasks, prediction.gradient, iteration, time);
         }
@@ -262,7 +271,15 @@ impl<const N: usize> StackController<N> {
             if let Some(kind) = self.escape(tasks, iteration, time) {
                 return Ok(Some(kind));
             }
-            return Ok(self.restart(law, tasks, cost, result, prediction.q, iteration, time));
+            return Ok(self.restart_at_rest(
+                law,
+                tasks,
+                cost,
+                result,
+                prediction.q,
+                iteration,
+                time,
+            ));
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));

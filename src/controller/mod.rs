@@ -80,10 +80,12 @@
 //! (`e_rᵀ J_r u > r_escape ‖e_r‖²`, D24); or, in step 4, when the settled stack has achieved its tasks with the reserve
 //! task's error still above `ε_escape` (D23).
 //!
-//! When the whole sequence is stacked, nothing is out, no escape is due and the robot has come to rest (`‖q̇_n‖ <
-//! ε_add`, the paper's threshold) with a joint **locked** at a limit and the goal not reached (the reserve task's error
-//! above `ε_escape`; without a reserve, a stacked task's above `ε_achieved`), the run sits at a false equilibrium
-//! against the limit that sliding cannot leave. The controller **restarts** the sequence, each time (D29,
+//! When the whole sequence is stacked, nothing is out, no escape is due and the run no longer progresses — the robot
+//! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' squared error has not fallen by a
+//! fifth within [`ControllerParameters::restart_window`] while it creeps along a limit — with a joint **locked** at a
+//! limit and the goal not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
+//! `ε_achieved`), the run sits at a false equilibrium against the limit that sliding cannot leave. The controller
+//! **restarts** the sequence, each time (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
 //! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
@@ -214,6 +216,9 @@ pub struct StackController<const N: usize> {
     /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
     /// `k − 1` (`k` = the event count then); reset at each change.
     early_push_reference: Option<(usize, f64)>,
+    /// D29 without rest: `(t₀, E₀)`, the time and the stacked tasks' squared error norm when the sequence was last
+    /// found complete after a change, or when that error last fell below `0.8 E₀`.
+    progress_reference: Option<(f64, f64)>,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,
     law_workspace: ControlWorkspace<N>,
@@ -306,6 +311,7 @@ impl<const N: usize> StackController<N> {
             limits: None,
             change_pending: false,
             last_change_time: 0.0,
+            progress_reference: None,
             early_push_reference: None,
             last_removal_time: f64::NEG_INFINITY,
             last_stack_velocity_norm: f64::INFINITY,

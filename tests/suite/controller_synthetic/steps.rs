@@ -115,6 +115,7 @@ fn invalid_parameters_and_task_count() {
         ("restart_offset", [-0.1, 1.0, f64::NAN]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
         ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
+        ("restart_window", [0.0, -1.0, f64::NAN]),
         ("stall_timeout", [-1.0, f64::NAN, f64::INFINITY]),
     ]
     .into_iter()
@@ -126,6 +127,7 @@ fn invalid_parameters_and_task_count() {
                 "restart_offset" => parameters.restart_offset = value,
                 "restart_centre_band" => parameters.restart_centre_band = value,
                 "stall_timeout" => parameters.stall_timeout = value,
+                "restart_window" => parameters.restart_window = value,
                 _ => parameters.restart_timeout = value,
             }
             (parameters, name)
