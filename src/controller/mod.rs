@@ -49,7 +49,9 @@
 //!    `1/μ` to act, starts too late — the removal came too late.
 //! 4. Otherwise, when the robot has **settled** (D5: `‖q̇_n‖ < ε_add` and `t − τ ≥ n_settle/μ`; for a push with no
 //!    task out, when removals are allowed, `ε_add` is [`ControllerParameters::settle_velocity_with_removal`], 0.1 by
-//!    default against the paper's 0.01, so that the next task is pushed before the higher ones have quite converged):
+//!    default against the paper's 0.01, so that the next task is pushed before the higher ones have quite converged;
+//!    for the full method also when the stacked tasks' error has stopped falling, its squared norm not down by a fifth
+//!    within [`ControllerParameters::progress_window`], whatever the velocity):
 //!    * a removed task is **put back** (D7) at its original priority when it has stayed out for its dwell time
 //!      (`dwell · 2^{k−1}` after its `k`-th removal: each new removal doubles the wait) and the law with it back,
 //!      predicted over the task's own time constant `n_back/λ_i`, keeps `h(q̂) ≤ r_back · h_max` (**hysteresis**: a
@@ -81,8 +83,8 @@
 //! task's error still above `ε_escape` (D23).
 //!
 //! When the whole sequence is stacked, nothing is out, no escape is due and the run no longer progresses — the robot
-//! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' squared error has not fallen by a
-//! fifth within [`ControllerParameters::restart_window`] while it creeps along a limit — with a joint **locked** at a
+//! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' error has stopped falling (D5)
+//! while it creeps along a limit — with a joint **locked** at a
 //! limit and the goal not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
 //! `ε_achieved`), the run sits at a false equilibrium against the limit that sliding cannot leave. The controller
 //! **restarts** the sequence, each time (D29,
@@ -216,8 +218,8 @@ pub struct StackController<const N: usize> {
     /// D28: `(k, m)`, the smallest `‖u⁺‖` (the law with the next task pushed) seen since the change logged as event
     /// `k − 1` (`k` = the event count then); reset at each change.
     early_push_reference: Option<(usize, f64)>,
-    /// D29 without rest: `(t₀, E₀)`, the time and the stacked tasks' squared error norm when the sequence was last
-    /// found complete after a change, or when that error last fell below `0.8 E₀`.
+    /// D5: `(t₀, E₀)`, the time and the stacked tasks' squared error norm at the first settling test after the last
+    /// change, or when that error last fell below `0.8 E₀`.
     progress_reference: Option<(f64, f64)>,
     last_removal_time: f64,
     last_stack_velocity_norm: f64,

@@ -241,12 +241,13 @@ pub struct ControllerParameters {
     /// `T_restart` (s): the recentring ends after this long even if a joint has not reached the middle of its range
     /// (D29; default 5 s, the stall timeout's).
     pub restart_timeout: f64,
-    /// `W_restart` (s): the restart of D29 also fires, without the robot being at rest, when the stacked tasks' error
-    /// has stopped falling — its squared norm `Σ‖e_i‖²` not below 0.8 times its value `W_restart` earlier, with the
-    /// same conditions (every task stacked, none out, none achieved, a joint locked, the goal missed) held since: the
-    /// arm creeps along the limit it is locked at. Default 5 s; `+∞` keeps the restart at rest alone; in
-    /// `(0, 86400]` s or `+∞`. Measured: theory D29.
-    pub restart_window: f64,
+    /// `W_progress` (s), full method only (robust rule, removals allowed): the stack has also settled (D5) when the
+    /// stacked tasks' error has stopped falling — its squared norm `Σ‖e_i‖²` not below 0.8 times its value
+    /// `W_progress` earlier, no change made since — whatever its velocity. The next task is then pushed or a removed
+    /// one tested, and with the sequence complete the restart of D29 may fire: a stack that creeps along a limit or
+    /// chatters in place has settled as much as one at rest. Default 5 s; `+∞`: the velocity test alone; in
+    /// `(0, 86400]` s or `+∞`. Measured: theory D5, D29.
+    pub progress_window: f64,
     /// `ε_σ`, the floor of D30 relative to each level's scale: the law inverts every stack level with the gain of each
     /// singular direction capped at `1/ε` (`ε = ε_σ · max(σ_max(J̃_i), ‖J_i‖_F)`, [`VelocityInverse::Filtered`]), so a
     /// level that is nearly singular — a task left with too few free joints by a locked joint or a higher level — is
@@ -292,7 +293,7 @@ impl Default for ControllerParameters {
             restart_offset: 0.5,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
-            restart_window: 5.0,
+            progress_window: 5.0,
             singular_value_floor: 3e-4,
             hard_limit_rule: HardLimitRule::BrakeAndLock,
             sequencing: TaskSequencing::OneByOne,
@@ -401,12 +402,12 @@ impl ControllerParameters {
             v > 0.0 && DURATION_S.contains(v),
             "in (0, 86400] s",
         )?;
-        let v = self.restart_window;
+        let v = self.progress_window;
         check(
-            "restart_window",
+            "progress_window",
             v,
             v > 0.0 && (v == f64::INFINITY || DURATION_S.contains(v)),
-            "in (0, 86400] s (+∞: at rest only)",
+            "in (0, 86400] s (+∞: the velocity test alone)",
         )?;
         let v = f64::from(self.max_removals);
         check("max_removals", v, self.max_removals >= 1, "≥ 1")?;

@@ -1,13 +1,8 @@
-//! Recovery (D23, D24, D29): the reserve task's escape, its early form, and the restart of the sequence from rest
-//! against a limit with its recentring term.
+//! Recovery (D23, D24, D29): the reserve task's escape, its early form, and the restart of the sequence when the run
+//! no longer progresses against a limit, with its recentring term.
 
 use super::*;
 use std::f64::consts::{FRAC_PI_2, PI};
-
-/// D29 without rest: the stacked tasks' squared error norm makes progress when it falls below this fraction of its
-/// reference (its norm by about a tenth). Not a parameter: 0.5 to 0.9 change the zoo's uniform count by under 0.3 %
-/// (theory notes, D29).
-const PROGRESS_FRACTION: f64 = 0.8;
 
 impl<const N: usize> StackController<N> {
     /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
@@ -85,36 +80,21 @@ impl<const N: usize> StackController<N> {
         Some(EventKind::Escape)
     }
 
-    /// D29 at rest: the stack velocity below the paper's `ε_add`, the sequence complete, nothing out and no escape due
-    /// (called after the escape of D23 declined).
+    /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
+    /// a run that no longer progresses — at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) or with its stacked error
+    /// flat for `W_progress` (`stalled`, [`Self::stopped_progressing`]) — with a joint locked at a limit and the goal
+    /// not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
+    /// `ε_achieved`): every task but the first is taken out in one change, each time, and the locked joints are driven
+    /// to their targets — the middle of their ranges, past it for ranges wider than a half turn
+    /// ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn restart_at_rest(
+    pub(super) fn restart(
         &mut self,
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
         result: &ControllerStep<N>,
-        q: &JointVector<N>,
-        iteration: usize,
-        time: f64,
-    ) -> Option<EventKind> {
-        if result.stack_velocity_norm >= self.parameters.settle_velocity {
-            return None;
-        }
-        self.restart(law, tasks, cost, q, iteration, time)
-    }
-
-    /// D29: with the whole sequence stacked and nothing out, a run that no longer progresses — at rest
-    /// ([`Self::restart_at_rest`]) or creeping ([`Self::restart_without_progress`]) — with a joint locked at a limit
-    /// and the goal not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
-    /// `ε_achieved`): every task but the first is taken out in one change, each time, and the locked joints are driven
-    /// to their targets — the middle of their ranges, past it for ranges wider than a half turn
-    /// ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
-    fn restart(
-        &mut self,
-        law: &ControlLaw,
-        tasks: &[TaskValue<N>],
-        cost: Option<&dyn Cost<N>>,
+        stalled: bool,
         q: &JointVector<N>,
         iteration: usize,
         time: f64,
@@ -126,6 +106,7 @@ impl<const N: usize> StackController<N> {
             || self.limits.is_none()
             || cost.is_none()
             || law.avoidance_gain() <= 0.0
+            || !(stalled || result.stack_velocity_norm < parameters.settle_velocity)
         {
             return None;
         }
@@ -165,56 +146,6 @@ impl<const N: usize> StackController<N> {
         self.stacked = stacked;
         self.stacked.truncate(1);
         Some(EventKind::Restart)
-    }
-
-    /// D29, without rest: the run creeps instead of resting. Called with the sequence complete and no task out; the
-    /// stacked tasks' squared error norm `E = Σ‖e_i‖²` is compared with a reference `(t₀, E₀)` taken when these
-    /// conditions began or `E` last fell below `0.8 E₀`. The restart fires once `t − t₀ ≥ W_restart` with `E ≥ 0.8 E₀`
-    /// and a stacked task not achieved (a stack that has achieved its tasks is for the escape of D23 to judge).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn restart_without_progress(
-        &mut self,
-        law: &ControlLaw,
-        tasks: &[TaskValue<N>],
-        cost: Option<&dyn Cost<N>>,
-        q: &JointVector<N>,
-        iteration: usize,
-        time: f64,
-    ) -> Option<EventKind> {
-        let window = self.parameters.restart_window;
-        if window == f64::INFINITY {
-            return None;
-        }
-        let achieved = self
-            .stacked
-            .iter()
-            .all(|&t| tasks[t].error().norm() < self.parameters.escape_achieved_error);
-        if achieved {
-            self.progress_reference = None;
-            return None;
-        }
-        let error: f64 = self
-            .stacked
-            .iter()
-            .map(|&t| tasks[t].error().norm_squared())
-            .sum();
-        match self.progress_reference {
-            // The reference holds while no change has been made since it was taken and the error has not fallen by
-            // the fraction.
-            Some((since, reference))
-                if since >= self.last_change_time && error >= PROGRESS_FRACTION * reference =>
-            {
-                if time - since < window {
-                    return None;
-                }
-            }
-            _ => {
-                self.progress_reference = Some((time, error));
-                return None;
-            }
-        }
-        self.progress_reference = None;
-        self.restart(law, tasks, cost, q, iteration, time)
     }
 
     /// D29: each joint's recentring target: the middle of its range `q̄_i`, past it for a joint whose range exceeds a

@@ -441,7 +441,7 @@ fn a_replay_that_rests_against_a_limit_again_restarts_again() {
 
 /// D29 without rest: on the zoo's Panda (uniform starts), runs that end at the budget with every task stacked and a joint
 /// locked creep along the limit, never at rest, so the restart at rest never fires. With the restart also made once the
-/// stacked tasks' error has stopped falling for `restart_window` (the default), some of them converge, each after a
+/// stacked tasks' error has stopped falling for `progress_window` (the default), some of them converge, each after a
 /// restart, and no draw that converged without it is lost (measured at K = 40 on seeds 3, 5, 7: 9, 7 and 4 gained,
 /// none lost). Without `SERVOSTACK_ZOO_DIR` the test says so and checks nothing more.
 #[test]
@@ -453,9 +453,9 @@ fn a_run_that_creeps_along_a_limit_restarts_without_resting() {
     let zoo =
         Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap();
     let with_window = Zoo::scenario(zoo.arm("panda").unwrap(), Path::new(&dir)).unwrap();
-    assert!(with_window.controller.restart_window.is_finite());
+    assert!(with_window.controller.progress_window.is_finite());
     let mut at_rest_only = with_window.clone();
-    at_rest_only.controller.restart_window = f64::INFINITY;
+    at_rest_only.controller.progress_window = f64::INFINITY;
     let run = |scenario: &Scenario| {
         Study::new(scenario, families(&["uniform"]), 40, 5)
             .unwrap()

@@ -1,6 +1,7 @@
-//! The stack controller's steps: the velocity is continuous at every change of random stacks (theory D1, D14), the
-//! next task is pushed before its push turns singular (D28), the first push is logged at the first step, a failed
-//! step leaves the last velocity sent in place, and invalid parameters and task counts are named errors.
+//! The stack controller's steps: the velocity is continuous at every change of random stacks (theory D1, D14), a
+//! stack whose error stops falling has settled (D5), the next task is pushed before its push turns singular (D28),
+//! the first push is logged at the first step, a failed step leaves the last velocity sent in place, and invalid
+//! parameters and task counts are named errors.
 
 use super::{assert_continuous_at_events, evaluate, run_tasks, tasks_and_values, Run};
 use nalgebra::DVector;
@@ -115,7 +116,7 @@ fn invalid_parameters_and_task_count() {
         ("restart_offset", [-0.1, 1.0, f64::NAN]),
         ("restart_centre_band", [0.0, 0.6, f64::NAN]),
         ("restart_timeout", [0.0, -1.0, f64::INFINITY]),
-        ("restart_window", [0.0, -1.0, f64::NAN]),
+        ("progress_window", [0.0, -1.0, f64::NAN]),
         ("stall_timeout", [-1.0, f64::NAN, f64::INFINITY]),
     ]
     .into_iter()
@@ -127,7 +128,7 @@ fn invalid_parameters_and_task_count() {
                 "restart_offset" => parameters.restart_offset = value,
                 "restart_centre_band" => parameters.restart_centre_band = value,
                 "stall_timeout" => parameters.stall_timeout = value,
-                "restart_window" => parameters.restart_window = value,
+                "progress_window" => parameters.progress_window = value,
                 _ => parameters.restart_timeout = value,
             }
             (parameters, name)
@@ -184,6 +185,54 @@ impl Task<3, JointVector<3>> for FnTask {
             &TaskJacobian::from_fn(1, |_, k| row[k]),
         )
     }
+}
+
+/// D5's stalled stack: "stuck" keeps its error at 0.15 whatever `q` (its Jacobian, along `q1`, moves the robot but
+/// not the error), so the law slides `q1` at 0.15 rad/s, above the full method's `ε_add` (0.1), for as long as the
+/// task is stacked; "side" waits behind it. The full method pushes "side" once the stacked error has not fallen by a
+/// fifth within `progress_window` of its push (at the first period, `t = 0`); with the window at `+∞`, or
+/// under the paper's rule (the baselines' velocity test alone), it never does.
+#[test]
+fn a_stack_whose_error_stops_falling_has_settled_whatever_its_velocity() {
+    let tasks = || {
+        vec![
+            FnTask {
+                name: "stuck",
+                constants: [0.0; 2],
+                function: |_, _| (0.15, [0.0, 1.0, 0.0]),
+            },
+            FnTask {
+                name: "side",
+                constants: [0.0; 2],
+                function: |q, _| (q[2] - 0.2, [0.0, 0.0, 1.0]),
+            },
+        ]
+    };
+    let side_pushed_at = |parameters: ControllerParameters| {
+        let run = run_tasks(
+            tasks(),
+            JointVector::<3>::new(0.0, 0.7, 0.0),
+            parameters,
+            1.0,
+            700,
+        );
+        assert_eq!(run.hit, None);
+        run.first(EventKind::Push, 1)
+    };
+    let with_window = |progress_window| ControllerParameters {
+        progress_window,
+        ..Default::default()
+    };
+    let default = side_pushed_at(ControllerParameters::default()).expect("pushed by default");
+    assert!((500..=502).contains(&default), "pushed at {default}");
+    let short = side_pushed_at(with_window(2.0)).expect("pushed with a 2 s window");
+    assert!((200..=202).contains(&short), "pushed at {short}");
+    assert_eq!(side_pushed_at(with_window(f64::INFINITY)), None);
+    let paper = ControllerParameters {
+        rule: DecisionRule::Paper,
+        ..Default::default()
+    };
+    assert_eq!(side_pushed_at(paper), None);
 }
 
 /// D28's two tasks. "sum" drives `q0 + q2` to 0.7: alone, its least-norm motion moves `q0` and `q2` together, to 0.35
