@@ -392,6 +392,18 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
     assert_eq!(run.stacked_at_end().len(), 4);
 }
 
+/// The zoo's arm `name` with its generated scenario, when the zoo is installed (`SERVOSTACK_ZOO_DIR`, as `.ci/run` sets
+/// it); otherwise `None`, after saying so.
+fn zoo_scenario(name: &str) -> Option<Scenario> {
+    let Some(dir) = std::env::var_os("SERVOSTACK_ZOO_DIR") else {
+        eprintln!("SERVOSTACK_ZOO_DIR is not set (scripts/install_zoo.sh prints it): the zoo's {name} is not loaded");
+        return None;
+    };
+    let zoo =
+        Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap();
+    Some(Zoo::scenario(zoo.arm(name).unwrap(), Path::new(&dir)).unwrap())
+}
+
 /// D29 is made each time a run rests against a limit short of the goal, not once: on the zoo's UR3 (its generated
 /// scenario, with the zoo installed) the replay after a first restart often rests again, at one pose with the shoulder
 /// lift locked at the limit the generator set, and restarting from there converges. Some of its `feasible` draws
@@ -399,13 +411,9 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
 /// and checks nothing more.
 #[test]
 fn a_replay_that_rests_against_a_limit_again_restarts_again() {
-    let Some(dir) = std::env::var_os("SERVOSTACK_ZOO_DIR") else {
-        eprintln!("SERVOSTACK_ZOO_DIR is not set (scripts/install_zoo.sh prints it): the zoo's UR3 is not loaded");
+    let Some(scenario) = zoo_scenario("ur3") else {
         return;
     };
-    let zoo =
-        Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap();
-    let scenario = Zoo::scenario(zoo.arm("ur3").unwrap(), Path::new(&dir)).unwrap();
     let study = Study::new(&scenario, optional_families(), 40, 75)
         .unwrap()
         .with_methods(&[RunKind::FullMethod]);
@@ -446,13 +454,9 @@ fn a_replay_that_rests_against_a_limit_again_restarts_again() {
 /// none lost). Without `SERVOSTACK_ZOO_DIR` the test says so and checks nothing more.
 #[test]
 fn a_run_that_creeps_along_a_limit_restarts_without_resting() {
-    let Some(dir) = std::env::var_os("SERVOSTACK_ZOO_DIR") else {
-        eprintln!("SERVOSTACK_ZOO_DIR is not set (scripts/install_zoo.sh prints it): the zoo's Panda is not loaded");
+    let Some(with_window) = zoo_scenario("panda") else {
         return;
     };
-    let zoo =
-        Zoo::from_file(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/zoo.toml")).unwrap();
-    let with_window = Zoo::scenario(zoo.arm("panda").unwrap(), Path::new(&dir)).unwrap();
     assert!(with_window.controller.progress_window.is_finite());
     let mut at_rest_only = with_window.clone();
     at_rest_only.controller.progress_window = f64::INFINITY;
