@@ -304,12 +304,13 @@ impl<const N: usize> StackController<N> {
             if let Some(kind) = self.escape(tasks, iteration, time) {
                 return Ok(Some(kind));
             }
+            // D29 restarts a run at rest (the paper's `ε_add`) or whose error has stopped falling.
+            let at_rest = result.stack_velocity_norm < self.parameters.settle_velocity;
             return Ok(self.restart(
                 law,
                 tasks,
                 cost,
-                result,
-                stalled,
+                at_rest || stalled,
                 prediction.q,
                 iteration,
                 time,

@@ -81,8 +81,8 @@ impl<const N: usize> StackController<N> {
     }
 
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
-    /// a run that no longer progresses — at rest (`‖q̇_n‖ < ε_add`, the paper's threshold) or with its stacked error
-    /// flat for `W_progress` (`stalled`, [`Self::stopped_progressing`]) — with a joint locked at a limit and the goal
+    /// a run that no longer progresses (`stopped`: at rest, `‖q̇_n‖ < ε_add` at the paper's threshold, or with its
+    /// stacked error flat for `W_progress`, [`Self::stopped_progressing`]) with a joint locked at a limit and the goal
     /// not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
     /// `ε_achieved`): every task but the first is taken out in one change, each time, and the locked joints are driven
     /// to their targets — the middle of their ranges, past it for ranges wider than a half turn
@@ -93,8 +93,7 @@ impl<const N: usize> StackController<N> {
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
-        result: &ControllerStep<N>,
-        stalled: bool,
+        stopped: bool,
         q: &JointVector<N>,
         iteration: usize,
         time: f64,
@@ -106,7 +105,7 @@ impl<const N: usize> StackController<N> {
             || self.limits.is_none()
             || cost.is_none()
             || law.avoidance_gain() <= 0.0
-            || !(stalled || result.stack_velocity_norm < parameters.settle_velocity)
+            || !stopped
         {
             return None;
         }
