@@ -35,6 +35,7 @@ RULES = [
     ("D26 lock", "controller.lock_band", "0"),
     ("D28 early push", "controller.early_push_ratio", "inf"),
     ("D29 restart", "controller.restart_rate", "0"),
+    ("D29 all joints on a repeat", "controller.recentre_all_on_repeat", "false"),
     ("D5 progress window", "controller.progress_window", "inf"),
     ("D30 filter", "controller.singular_value_floor", "0"),
 ]

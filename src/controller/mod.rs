@@ -90,7 +90,8 @@
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
 //! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
-//! the first task's null space, and the next task is pushed as before once they are near their targets (or after
+//! the first task's null space — every joint with finite limits when the same joints are locked at the same limits as
+//! at the previous restart ([`ControllerParameters::recentre_all_on_repeat`]) — and the next task is pushed as before once they are near their targets (or after
 //! [`ControllerParameters::restart_timeout`]); the reserve task may escape again.
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
@@ -140,6 +141,8 @@ mod insertion;
 mod parameters;
 mod recovery;
 mod removal;
+
+use recovery::LockedAt;
 
 pub use events::{
     ControllerStatus, ControllerStep, EventKind, ReinsertionReport, ReinsertionTest, RemovalReport,
@@ -234,6 +237,9 @@ pub struct StackController<const N: usize> {
     events: Vec<StackEvent>,
     /// The last D7 swap made, `(back, out)`: the next swap may not be its reverse `(out, back)` (anti-cycling).
     last_swap: Option<(usize, usize)>,
+    /// D29: the joints locked at the last restart, and at which limit; a restart that finds the same recentres every
+    /// limited joint ([`ControllerParameters::recentre_all_on_repeat`]).
+    last_restart_locks: Option<[LockedAt; N]>,
 }
 
 /// What the prediction of D6 needs: the configuration, the velocity the current stack sends now and the one sent at
@@ -325,6 +331,7 @@ impl<const N: usize> StackController<N> {
             svds: vec![ColumnSvd::default(); count],
             events: Vec::with_capacity(4 * count + 8),
             last_swap: None,
+            last_restart_locks: None,
         })
     }
 

@@ -235,6 +235,11 @@ pub struct ControllerParameters {
     /// `q̂_i = q̄_i − s_restart · sign(q_i − q̄_i) · π/2`; joints of narrower ranges go to their middle `q̄_i`. Default
     /// 0.5 (π/4 past the middle); `0`: every joint to its middle; in `[0, 1)`. Measured: theory D29.
     pub restart_offset: f64,
+    /// Whether a restart of D29 that finds the same joints locked at the same limits as the previous restart recentres
+    /// every joint with finite limits, not only the locked ones: the replay from the same recentring came back to the
+    /// same rest, and would again. Default `true`; `false`: the locked joints alone, at every restart. Measured:
+    /// theory D29.
+    pub recentre_all_on_repeat: bool,
     /// `b_restart`: the recentring ends, and the sequence goes on, once every recentred joint is within
     /// `b_restart Δq_i` of its target `q̂_i` (D29; a fraction of the range, default 0.05, in `(0, 0.5]`).
     pub restart_centre_band: f64,
@@ -291,6 +296,7 @@ impl Default for ControllerParameters {
             lock_band: 1e-5,
             restart_rate: 1.0,
             restart_offset: 0.5,
+            recentre_all_on_repeat: true,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
             progress_window: 5.0,

@@ -122,8 +122,9 @@ impl<const N: usize> StackController<N> {
         }
         let first = *self.stacked.first()?;
         let centre = self.recentring_targets(q)?;
+        let joints = self.recentred_joints(locked, q)?;
         self.phase = Phase::Recentring {
-            joints: locked,
+            joints,
             centre,
             since: time,
         };
@@ -145,6 +146,30 @@ impl<const N: usize> StackController<N> {
         self.stacked = stacked;
         self.stacked.truncate(1);
         Some(EventKind::Restart)
+    }
+
+    /// D29: the joints a restart recentres: the `locked` ones; every joint with finite limits when the same joints
+    /// are locked at the same limits as at the previous restart and [`ControllerParameters::recentre_all_on_repeat`]
+    /// is set (the replay from the same recentring came back to the same rest). Remembers this restart's locks.
+    fn recentred_joints(&mut self, locked: [bool; N], q: &JointVector<N>) -> Option<[bool; N]> {
+        let limits = self.limits.as_ref()?;
+        let locks: [LockedAt; N] = std::array::from_fn(|i| {
+            if !locked[i] {
+                LockedAt::Free
+            } else if q[i] > 0.5 * (limits.lower()[i] + limits.upper()[i]) {
+                LockedAt::Upper
+            } else {
+                LockedAt::Lower
+            }
+        });
+        let repeated = self.last_restart_locks == Some(locks);
+        self.last_restart_locks = Some(locks);
+        if !(repeated && self.parameters.recentre_all_on_repeat) {
+            return Some(locked);
+        }
+        Some(std::array::from_fn(|i| {
+            limits.lower()[i].is_finite() && limits.upper()[i].is_finite()
+        }))
     }
 
     /// D29: each joint's recentring target: the middle of its range `q̄_i`, past it for a joint whose range exceeds a
@@ -206,6 +231,14 @@ impl<const N: usize> StackController<N> {
             weights: JointVector::from_fn(|i, _| if joints[i] { weight } else { 0.0 }),
         })
     }
+}
+
+/// D29: where a joint was at a restart: free, or locked at its lower or upper limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum LockedAt {
+    Free,
+    Lower,
+    Upper,
 }
 
 /// D29: the avoidance cost `h` with the restart's recentring term in its gradient only,
@@ -291,6 +324,49 @@ mod tests {
         );
         let middles = controller(0.0).recentring_targets(&q).unwrap();
         assert_eq!(middles, JointVector::<3>::new(0.0, 0.0, 2.0));
+    }
+
+    #[test]
+    fn a_restart_that_finds_the_same_locks_again_recentres_every_limited_joint() {
+        let mut controller = controller(0.5);
+        let locked = [true, false, false];
+        let at_upper = JointVector::<3>::new(1.0, -5.0, 3.9);
+        let at_lower = JointVector::<3>::new(-1.0, -5.0, 3.9);
+        // The first restart recentres the locked joint alone; so does the next, the same joint at its other limit.
+        assert_eq!(controller.recentred_joints(locked, &at_upper), Some(locked));
+        assert_eq!(controller.recentred_joints(locked, &at_lower), Some(locked));
+        // The same joint at the same limit again: every joint.
+        assert_eq!(
+            controller.recentred_joints(locked, &at_lower),
+            Some([true; 3])
+        );
+        // Other joints locked: the locked ones alone again.
+        let other = [true, false, true];
+        assert_eq!(controller.recentred_joints(other, &at_lower), Some(other));
+        // Switched off, a repeated restart recentres the locked joints alone.
+        let mut off = controller.clone();
+        off.parameters.recentre_all_on_repeat = false;
+        assert_eq!(off.recentred_joints(other, &at_lower), Some(other));
+        // A joint without limits (D18) is never recentred.
+        let limits = JointLimits::new(
+            JointVector::<2>::new(-1.0, f64::NEG_INFINITY),
+            JointVector::<2>::new(1.0, f64::INFINITY),
+            0.1,
+        )
+        .unwrap();
+        let mut unlimited = StackController::new(ControllerParameters::default(), &[])
+            .unwrap()
+            .with_joint_limits(limits)
+            .unwrap();
+        let q = JointVector::<2>::new(1.0, 12.0);
+        assert_eq!(
+            unlimited.recentred_joints([true, false], &q),
+            Some([true, false])
+        );
+        assert_eq!(
+            unlimited.recentred_joints([true, false], &q),
+            Some([true, false])
+        );
     }
 
     #[test]
