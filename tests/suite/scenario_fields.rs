@@ -267,6 +267,11 @@ fn bases() -> Vec<(&'static str, Scenario)> {
         ("false equilibrium", data("afma6_false_equilibrium.toml")),
         ("view turned", data("afma6_view_turned.toml")),
         ("ur5e limits, a fallback", held),
+        // A replay that comes back to the rest it restarted from, where `recentre_all_on_repeat` decides (D29).
+        (
+            "ur5e, a repeated restart",
+            data("ur5e_repeated_restart.toml"),
+        ),
     ]
 }
 
