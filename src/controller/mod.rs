@@ -162,7 +162,8 @@ pub use parameters::{
 enum Phase<const N: usize> {
     /// Tasks are pushed, removed and put back (D5–D7, D28), the reserve task may escape (D23, D24).
     Sequencing,
-    /// D29: the sequence has restarted; the joints that were locked (`joints`) are driven to their targets `centre`
+    /// D29: the sequence has restarted; the joints that were locked (`joints`; every limited joint when the same were
+    /// locked at the previous restart) are driven to their targets `centre`
     /// (the middle of their range, past it for ranges wider than a half turn) in the first task's null space since
     /// `since` (s), and nothing is pushed or put back until they are there.
     Recentring {
