@@ -7,7 +7,7 @@ use servostack::math::JointVector;
 use servostack::scenario::{RobotSpec, RunKind, Scenario, Zoo};
 use servostack::sim::SummaryOnly;
 use servostack::study::{
-    optional_families, standard_families, Family, Perturbation, Study, StudyError,
+    optional_families, standard_families, Family, MethodResult, Perturbation, Study, StudyError,
     POSE_TOLERANCE_DEG, POSE_TOLERANCE_M,
 };
 use std::path::Path;
@@ -460,6 +460,26 @@ fn a_run_that_creeps_along_a_limit_restarts_without_resting() {
     assert!(with_window.controller.progress_window.is_finite());
     let mut at_rest_only = with_window.clone();
     at_rest_only.controller.progress_window = f64::INFINITY;
+    let gained = uniform_draws_gained(&with_window, &at_rest_only, "the restart without rest");
+    for (with, without) in &gained {
+        assert!(with.restart_take_outs > 0, "{with:?}");
+        assert_eq!(without.outcome, "max_iterations", "{without:?}");
+    }
+    assert!(
+        gained.len() >= 4,
+        "{} of 40 draws converged only with the restart without rest",
+        gained.len()
+    );
+}
+
+/// The full method's uniform runs on `with` and on `without` (a rule switched off), 40 draws of seed 5: asserts that
+/// no draw converges without the rule only, and returns the results of the draws that converge with it only,
+/// `(with, without)`.
+fn uniform_draws_gained(
+    with: &Scenario,
+    without: &Scenario,
+    rule: &str,
+) -> Vec<(MethodResult, MethodResult)> {
     let run = |scenario: &Scenario| {
         Study::new(scenario, families(&["uniform"]), 40, 5)
             .unwrap()
@@ -467,29 +487,24 @@ fn a_run_that_creeps_along_a_limit_restarts_without_resting() {
             .run()
             .unwrap()
     };
-    let (with_window, at_rest_only) = (run(&with_window), run(&at_rest_only));
-    let mut gained = 0;
-    for (draw, without) in with_window.families[0]
+    let (with, without) = (run(with), run(without));
+    let mut gained = Vec::new();
+    for (draw, other) in with.families[0]
         .draws
         .iter()
-        .zip(&at_rest_only.families[0].draws)
+        .zip(&without.families[0].draws)
     {
-        let (with, without) = (&draw.methods[0], &without.methods[0]);
+        let (with, without) = (&draw.methods[0], &other.methods[0]);
         assert!(
             with.converged() || !without.converged(),
-            "draw {}: converged only at rest: {without:?}, {with:?}",
+            "draw {}: converged only without {rule}: {without:?}, {with:?}",
             draw.draw
         );
         if with.converged() && !without.converged() {
-            gained += 1;
-            assert!(with.restart_take_outs > 0, "{with:?}");
-            assert_eq!(without.outcome, "max_iterations", "{without:?}");
+            gained.push((with.clone(), without.clone()));
         }
     }
-    assert!(
-        gained >= 4,
-        "{gained} of 40 draws converged only with the restart without rest"
-    );
+    gained
 }
 
 /// D29, a repeated restart: on the Kinova, whose base joint the generator restricts to a narrow range, the restart
@@ -505,35 +520,19 @@ fn a_restart_that_finds_the_same_locks_again_recentres_every_joint() {
     assert!(every_joint.controller.recentre_all_on_repeat);
     let mut locked_only = every_joint.clone();
     locked_only.controller.recentre_all_on_repeat = false;
-    let run = |scenario: &Scenario| {
-        Study::new(scenario, families(&["uniform"]), 40, 5)
-            .unwrap()
-            .with_methods(&[RunKind::FullMethod])
-            .run()
-            .unwrap()
-    };
-    let (every_joint, locked_only) = (run(&every_joint), run(&locked_only));
-    let mut gained = 0;
-    for (draw, without) in every_joint.families[0]
-        .draws
-        .iter()
-        .zip(&locked_only.families[0].draws)
-    {
-        let (with, without) = (&draw.methods[0], &without.methods[0]);
-        assert!(
-            with.converged() || !without.converged(),
-            "draw {}: converged only recentring the locked joints: {without:?}, {with:?}",
-            draw.draw
-        );
-        if with.converged() && !without.converged() {
-            gained += 1;
-            // Restarted at least twice (two take-outs of each task but the first, of the 4 in the sequence).
-            assert!(without.restart_take_outs >= 6, "{without:?}");
-        }
+    let gained = uniform_draws_gained(
+        &every_joint,
+        &locked_only,
+        "recentring every joint at a repeat",
+    );
+    for (_, without) in &gained {
+        // Restarted at least twice (two take-outs of each task but the first, of the 4 in the sequence).
+        assert!(without.restart_take_outs >= 6, "{without:?}");
     }
     assert!(
-        gained >= 4,
-        "{gained} of 40 draws converged only recentring every joint at a repeated restart"
+        gained.len() >= 4,
+        "{} of 40 draws converged only recentring every joint at a repeated restart",
+        gained.len()
     );
 }
 
