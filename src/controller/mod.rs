@@ -84,8 +84,8 @@
 //!
 //! When the whole sequence is stacked, nothing is out, no escape is due and the run no longer progresses — the robot
 //! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' error has stopped falling (D5)
-//! while it creeps along a limit — with a joint **locked** at a limit and the goal not reached (the reserve task's
-//! error above `ε_escape`; without a reserve, a stacked task's above `ε_achieved`), the run sits at a false
+//! while it creeps along a limit — with a joint **locked** at a limit and the goal not reached (a stacked task's error
+//! above `ε_achieved`, or the reserve task's above `ε_escape`), the run sits at a false
 //! equilibrium against the limit that sliding cannot leave. The controller **restarts** the sequence, each time (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away

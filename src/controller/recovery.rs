@@ -83,8 +83,7 @@ impl<const N: usize> StackController<N> {
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
     /// a run that no longer progresses (`stopped`: at rest, `‖q̇_n‖ < ε_add` at the paper's threshold, or with its
     /// stacked error flat for `W_progress`, [`Self::stopped_progressing`]) with a joint locked at a limit and the goal
-    /// not reached (the reserve task's error above `ε_escape`; without a reserve, a stacked task's above
-    /// `ε_achieved`): every task but the first is taken out in one change, each time, and the locked joints are driven
+    /// not reached (a stacked task's error above `ε_achieved`, or the reserve task's above `ε_escape`): every task but the first is taken out in one change, each time, and the locked joints are driven
     /// to their targets — the middle of their ranges, past it for ranges wider than a half turn
     /// ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
     #[allow(clippy::too_many_arguments)]
@@ -109,13 +108,15 @@ impl<const N: usize> StackController<N> {
         {
             return None;
         }
-        let goal_missed = match self.reserve {
-            Some(reserve) => tasks[reserve].error().norm() > parameters.escape_error,
-            None => self
-                .stacked
-                .iter()
-                .any(|&t| tasks[t].error().norm() > parameters.escape_achieved_error),
-        };
+        // Short of the goal: a stacked task not achieved, or the reserve task's corners off their goal. With a joint
+        // locked, the corners can rest within `ε_escape` of their goal while a stacked task is not achieved.
+        let goal_missed = self
+            .stacked
+            .iter()
+            .any(|&t| tasks[t].error().norm() > parameters.escape_achieved_error)
+            || self
+                .reserve
+                .is_some_and(|reserve| tasks[reserve].error().norm() > parameters.escape_error);
         let locked = *self.law_workspace.locked_joints();
         if !goal_missed || !locked.contains(&true) {
             return None;
