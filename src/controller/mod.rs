@@ -91,8 +91,9 @@
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
 //! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
 //! the first task's null space — every joint with finite limits when the same joints are locked at the same limits as
-//! at the previous restart ([`ControllerParameters::recentre_all_on_repeat`]) — and the next task is pushed as before once they are near their targets (or after
-//! [`ControllerParameters::restart_timeout`]); the reserve task may escape again.
+//! at the previous restart ([`ControllerParameters::recentre_all_on_repeat`]) — and the next task is pushed as before
+//! once they are near their targets (or after [`ControllerParameters::restart_timeout`]); the reserve task may escape
+//! again.
 //!
 //! [`DecisionRule::Paper`] keeps the paper's literal rule ([theory §6.2–6.4](crate::theory#s6-2) as first implemented: a fixed horizon along
 //! `u`, any task removable, re-insertion at the removal threshold with no dwell, no fallback) for comparison; its
