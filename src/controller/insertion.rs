@@ -304,17 +304,15 @@ impl<const N: usize> StackController<N> {
             if let Some(kind) = self.escape(tasks, iteration, time) {
                 return Ok(Some(kind));
             }
-            // D29 restarts a run at rest (the paper's `ε_add`) or whose error has stopped falling.
-            let at_rest = result.stack_velocity_norm < self.parameters.settle_velocity;
-            return Ok(self.restart(
-                law,
-                tasks,
-                cost,
-                at_rest || stalled,
-                prediction.q,
-                iteration,
-                time,
-            ));
+            // D29 restarts a run whose error has stopped falling, or at rest (the paper's `ε_add`).
+            let standstill = if stalled {
+                Some(Standstill::Flat)
+            } else if result.stack_velocity_norm < self.parameters.settle_velocity {
+                Some(Standstill::AtRest)
+            } else {
+                None
+            };
+            return Ok(self.restart(law, tasks, cost, standstill, prediction.q, iteration, time));
         }
         let robust = self.parameters.rule == DecisionRule::Robust;
         let h_max = cost.map_or(f64::INFINITY, |c| self.removal_threshold(c));

@@ -85,7 +85,8 @@
 //! When the whole sequence is stacked, nothing is out, no escape is due and the run no longer progresses — the robot
 //! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' error has stopped falling (D5)
 //! while it creeps along a limit — with a joint **locked** at a limit and the goal not reached (a stacked task's error
-//! above `ε_achieved`, or the reserve task's above `ε_escape`), the run sits at a false
+//! above `ε_achieved` at rest, above the loop's convergence threshold when its error has stopped falling
+//! ([`StackController::with_goal_error`]), or the reserve task's above `ε_escape`), the run sits at a false
 //! equilibrium against the limit that sliding cannot leave. The controller **restarts** the sequence, each time (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
 //! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
@@ -143,7 +144,7 @@ mod parameters;
 mod recovery;
 mod removal;
 
-use recovery::LockedAt;
+use recovery::{LockedAt, Standstill};
 
 pub use events::{
     ControllerStatus, ControllerStep, EventKind, ReinsertionReport, ReinsertionTest, RemovalReport,
@@ -242,6 +243,9 @@ pub struct StackController<const N: usize> {
     /// D29: the joints locked at the last restart, and at which limit; a restart that finds the same recentres every
     /// limited joint ([`ControllerParameters::recentre_all_on_repeat`]).
     last_restart_locks: Option<[LockedAt; N]>,
+    /// D29: the loop's convergence threshold; no restart while every stacked task's error is below it
+    /// ([`Self::with_goal_error`]).
+    goal_error: f64,
 }
 
 /// What the prediction of D6 needs: the configuration, the velocity the current stack sends now and the one sent at
@@ -334,6 +338,7 @@ impl<const N: usize> StackController<N> {
             events: Vec::with_capacity(4 * count + 8),
             last_swap: None,
             last_restart_locks: None,
+            goal_error: DEFAULT_GOAL_ERROR,
         })
     }
 
@@ -354,6 +359,26 @@ impl<const N: usize> StackController<N> {
                 })?;
             *flag = true;
         }
+        Ok(self)
+    }
+
+    /// The controller whose loop counts as converged when every stacked task's error norm is below `error` (the tasks'
+    /// units; default [`DEFAULT_GOAL_ERROR`], the convergence threshold of [`crate::sim`] and [`crate::servo`], which
+    /// pass theirs): the restart of D29 takes a run whose error has stopped falling against a limit for short of its
+    /// goal until then (a run at rest by its velocity alone, until `ε_achieved`). A threshold below the noise of the
+    /// measured errors lets a run resting at its goal restart.
+    ///
+    /// # Errors
+    /// [`ControllerError::InvalidParameter`] unless `error` is finite and > 0.
+    pub fn with_goal_error(mut self, error: f64) -> Result<Self, ControllerError> {
+        if !(error.is_finite() && error > 0.0) {
+            return Err(ControllerError::InvalidParameter {
+                name: "goal error",
+                value: error,
+                expected: "finite and > 0",
+            });
+        }
+        self.goal_error = error;
         Ok(self)
     }
 
@@ -698,6 +723,10 @@ fn predicted_value<const N: usize>(
 /// `n_resort`: the last resort of D13 looks `max(T, n_resort/μ)` ahead, the time a removal needs to take effect
 /// through the transition of D1.
 const LAST_RESORT_TRANSITIONS: f64 = 1.0;
+
+/// The default convergence threshold of the restart's goal test ([`StackController::with_goal_error`]), the task
+/// errors' norm below which [`crate::sim`] and [`crate::servo`] count a run as converged by default.
+pub const DEFAULT_GOAL_ERROR: f64 = 1e-4;
 
 /// Below this norm of `J_i⁺ e_i` the task is achieved and `C1'_i` is set to 0 ([D3](crate::theory#d3)).
 const DIRECTION_FLOOR: f64 = 1e-12;

@@ -168,6 +168,7 @@ pub struct ControllerParameters {
     pub rule: DecisionRule,
     /// `ε_achieved`: with a reserve task ([`StackController::with_reserve_task`], D23), the stack counts as having
     /// achieved its tasks when every stacked task's error norm `‖e_i‖` is below this (the tasks' units; default 1e−3).
+    /// The restart of D29 also counts a run at rest (by its velocity) below it as at its goal.
     pub escape_achieved_error: f64,
     /// `ε_escape`: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and
     /// the reserve task's error norm is still above this (its units; default 0.005: for the image points, 1.5 px per

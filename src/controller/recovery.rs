@@ -4,6 +4,18 @@
 use super::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
+/// D29: how a run with the whole sequence stacked has stopped progressing, and so the stacked tasks' error above which
+/// the restart's goal test counts the goal as missed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Standstill {
+    /// At rest, `‖q̇_n‖ < ε_add`: near the goal the law's velocity is proportional to the error, so a run still
+    /// converging there is at rest too; the goal counts as missed above `ε_achieved`.
+    AtRest,
+    /// The stacked error flat for `W_progress` ([`StackController::stopped_progressing`]): a run converging would not
+    /// be; the goal counts as missed above the loop's convergence threshold ([`StackController::with_goal_error`]).
+    Flat,
+}
+
 impl<const N: usize> StackController<N> {
     /// D23: the reserve task replaces the last task of the sequence when the stack has achieved its tasks and the
     /// reserve task has not (called with the sequence complete, no task out and the stack settled).
@@ -81,9 +93,8 @@ impl<const N: usize> StackController<N> {
     }
 
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
-    /// a run that no longer progresses (`stopped`: at rest, `‖q̇_n‖ < ε_add` at the paper's threshold, or with its
-    /// stacked error flat for `W_progress`, [`Self::stopped_progressing`]) with a joint locked at a limit and the goal
-    /// not reached (a stacked task's error above `ε_achieved`, or the reserve task's above `ε_escape`): every task but
+    /// a run that no longer progresses ([`Standstill`]) with a joint locked at a limit and the goal not reached (a
+    /// stacked task's error above the standstill's threshold, or the reserve task's above `ε_escape`): every task but
     /// the first is taken out in one change, each time, and the locked joints (every limited joint at a repeat,
     /// [`Self::recentred_joints`]) are driven to their targets — the middle of their ranges, past it for ranges wider
     /// than a half turn ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
@@ -93,7 +104,7 @@ impl<const N: usize> StackController<N> {
         law: &ControlLaw,
         tasks: &[TaskValue<N>],
         cost: Option<&dyn Cost<N>>,
-        stopped: bool,
+        standstill: Option<Standstill>,
         q: &JointVector<N>,
         iteration: usize,
         time: f64,
@@ -105,16 +116,19 @@ impl<const N: usize> StackController<N> {
             || self.limits.is_none()
             || cost.is_none()
             || law.avoidance_gain() <= 0.0
-            || !stopped
         {
             return None;
         }
-        // Short of the goal: a stacked task not achieved, or the reserve task's corners off their goal. With a joint
-        // locked, the corners can rest within `ε_escape` of their goal while a stacked task is not achieved.
+        let goal_error = match standstill? {
+            Standstill::AtRest => parameters.escape_achieved_error,
+            Standstill::Flat => self.goal_error,
+        };
+        // Short of the goal: a stacked task above the threshold, or the reserve task's corners off their goal. With a
+        // joint locked, the corners can rest within `ε_escape` of their goal while a stacked task is not converged.
         let goal_missed = self
             .stacked
             .iter()
-            .any(|&t| tasks[t].error().norm() > parameters.escape_achieved_error)
+            .any(|&t| tasks[t].error().norm() > goal_error)
             || self
                 .reserve
                 .is_some_and(|reserve| tasks[reserve].error().norm() > parameters.escape_error);
@@ -368,6 +382,27 @@ mod tests {
         assert_eq!(
             unlimited.recentred_joints([true, false], &q),
             Some([true, false])
+        );
+    }
+
+    #[test]
+    fn the_goal_error_is_a_finite_positive_threshold() {
+        for bad in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
+            let result = controller(0.5).with_goal_error(bad);
+            assert!(
+                matches!(
+                    result,
+                    Err(ControllerError::InvalidParameter {
+                        name: "goal error",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        assert_eq!(
+            controller(0.5).with_goal_error(1e-3).unwrap().goal_error,
+            1e-3
         );
     }
 

@@ -142,7 +142,9 @@ pub struct ServoConfig<const N: usize> {
     /// An adaptive gain `λ(‖e_i‖∞)` replacing every task's constant gain (default `None`: the constant gains).
     pub adaptive_gain: Option<AdaptiveGain>,
     /// The servo has converged when every task is stacked and `‖e_i‖ < convergence_error` for each (in the tasks'
-    /// units: normalised image coordinates, rad, dimensionless; see [`ServoOutput::converged`]). Default 1e−4.
+    /// units: normalised image coordinates, rad, dimensionless; see [`ServoOutput::converged`]). Default 1e−4. The
+    /// full method's restart ([D29](crate::theory#d29)) takes a servo whose error has stopped falling against a limit
+    /// for short of its goal while a stacked task's error is above it: set it above the noise of your corners.
     pub convergence_error: f64,
     /// The law (default: the paper's full method).
     pub method: ServoMethod,
@@ -343,7 +345,8 @@ impl<const N: usize> VisualServo<N> {
         )?;
         let mut controller = StackController::new(parameters, &values)?
             .with_protected_tasks(protected)?
-            .with_joint_limits(limits.clone())?;
+            .with_joint_limits(limits.clone())?
+            .with_goal_error(config.convergence_error)?;
         if full_method && matches!(config.tasks, TaskChoice::Sequence { .. }) {
             controller = controller.with_reserve_task()?;
         }

@@ -117,7 +117,8 @@ pub fn simulate_with<const N: usize>(
         .transpose()?;
     let mut controller = StackController::new(drive.controller, &values)?
         .with_protected_tasks(drive.protected_tasks)?
-        .with_joint_limits(scene.limits.clone())?;
+        .with_joint_limits(scene.limits.clone())?
+        .with_goal_error(parameters.convergence_error)?;
     if drive.reserve_task {
         controller = controller.with_reserve_task()?;
     }

@@ -16,7 +16,9 @@ pub struct SimulationParameters {
     /// The iteration budget, at most [`MAX_ITERATIONS`] (10⁷).
     pub max_iterations: usize,
     /// The run has converged when the stack is complete and `‖e_i‖ < convergence_error` for every task (the noise-free
-    /// errors when the camera is not exact), and has stayed so for `convergence_hold_s`.
+    /// errors when the camera is not exact), and has stayed so for `convergence_hold_s`. The full method's restart
+    /// ([D29](crate::theory#d29)) takes a run whose error has stopped falling against a limit for short of its goal
+    /// while a stacked task's measured error is above it.
     pub convergence_error: f64,
     /// How long (s, ≥ 0; default 0: the first period below) the task errors must stay below `convergence_error` for
     /// the run to count as converged: with pixel noise the errors first cross the threshold while the camera still

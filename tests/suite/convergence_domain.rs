@@ -538,29 +538,52 @@ fn a_restart_that_finds_the_same_locks_again_recentres_every_joint() {
 
 /// D29's goal test: on the zoo's Tiago, runs came to rest 1 cm from the goal pose with a joint locked, the reserve
 /// task's corners within `ε_escape` of their goal but a stacked task not achieved, and stayed there until the budget
-/// ended without a restart (4 of these 40 draws, measured before the test counted the stacked tasks). No run of the
-/// full method ends its budget within 5 cm of the goal without having restarted.
+/// ended without a restart (4 of these 40 draws, measured before the test counted the stacked tasks). On the Kinova
+/// and the Tiago Pro, runs stalled near the goal with a stacked error flat between the convergence threshold and
+/// `ε_achieved` (2 and 1 of these draws, measured before a flat error was judged against the convergence threshold).
+/// No run of the full method ends its budget within 5 cm of the goal without having restarted.
 #[test]
 fn a_run_resting_near_the_goal_against_a_limit_restarts() {
-    let Some(tiago) = zoo_scenario("tiago") else {
+    for arm in ["tiago", "tiago_pro", "kinova"] {
+        let Some(scenario) = zoo_scenario(arm) else {
+            return;
+        };
+        let study = Study::new(&scenario, families(&["uniform"]), 40, 5)
+            .unwrap()
+            .with_methods(&[RunKind::FullMethod])
+            .run()
+            .unwrap();
+        for draw in &study.families[0].draws {
+            let run = &draw.methods[0];
+            assert!(
+                run.converged()
+                    || run.restart_take_outs > 0
+                    || run.outcome != "max_iterations"
+                    || run.camera_translation_error > 0.05,
+                "{arm}, draw {}: {run:?}",
+                draw.draw
+            );
+        }
+    }
+}
+
+/// D29's goal test at rest: near the goal the law's velocity is proportional to the error, so a run still converging
+/// there is at rest by the paper's `ε_add`. At rest, the goal counts as missed only above `ε_achieved`; judged against
+/// the convergence threshold instead, a restart took a converging UR3 run (of these 40 draws) away from its goal
+/// (measured). The restart takes no draw that converges without it, and gains some (9 measured).
+#[test]
+fn the_restart_takes_no_run_that_converges_without_it() {
+    let Some(with_restart) = zoo_scenario("ur3") else {
         return;
     };
-    let study = Study::new(&tiago, families(&["uniform"]), 40, 5)
-        .unwrap()
-        .with_methods(&[RunKind::FullMethod])
-        .run()
-        .unwrap();
-    for draw in &study.families[0].draws {
-        let run = &draw.methods[0];
-        assert!(
-            run.converged()
-                || run.restart_take_outs > 0
-                || run.outcome != "max_iterations"
-                || run.camera_translation_error > 0.05,
-            "draw {}: {run:?}",
-            draw.draw
-        );
-    }
+    let mut without = with_restart.clone();
+    without.controller.restart_rate = 0.0;
+    let gained = uniform_draws_gained(&with_restart, &without, "the restart");
+    assert!(
+        gained.len() >= 4,
+        "{} of 40 draws converged only with the restart",
+        gained.len()
+    );
 }
 
 /// D25 braking: on the UR5e, whose elbow is fast for its 0.55 rad range, a third of the full method's uniform runs
