@@ -32,6 +32,7 @@ RULES = [
     ("D13 fallback", "controller.stall_timeout", "86400"),
     ("D24 early escape", "controller.escape_growth_rate", "inf"),
     ("D25 braking", "controller.braking_rate", "inf"),
+    ("D25 image border", "controller.brake_at_image_border", "false"),
     ("D26 lock", "controller.lock_band", "0"),
     ("D28 early push", "controller.early_push_ratio", "inf"),
     ("D29 restart", "controller.restart_rate", "0"),

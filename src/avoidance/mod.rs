@@ -28,7 +28,7 @@ pub use collision::{Collider, Geometry, Proximity};
 pub use composite::CompositeCost;
 pub use joint_limits::{braking_speed, stopping_speed, JointLimits};
 pub use mesh::{MeshPaths, MAX_COLLADA_DEPTH, MAX_MESH_BYTES};
-pub use motion_limits::{MotionLimits, ShapedVelocity};
+pub use motion_limits::{image_braking_scale, MotionLimits, ShapedVelocity};
 pub use obstacles::{ClosestPair, LinkColliders, Obstacle, ObstacleCost, ObstaclePair};
 pub use visibility::VisibilityCost;
 

@@ -13,7 +13,10 @@
 //! With every `a_i = +∞` the sent velocity is `s q̇`, with `s` the scalings of D25 alone, bit for bit.
 
 use super::JointLimits;
+use crate::camera::{CameraIntrinsics, ImagePoint};
+use crate::feature::point_interaction;
 use crate::math::{acceleration_limit_scale, velocity_limit_scale, JointVector};
+use nalgebra::Vector6;
 
 /// The robot's limits on the motion of its joints: velocity and acceleration, per joint, and the longest period a
 /// velocity may be held.
@@ -109,6 +112,48 @@ impl<const N: usize> MotionLimits<N> {
     }
 }
 
+/// The braking of [D25](crate::theory#d25) before the border of the image: the largest `s ∈ [0, 1]` such that, with
+/// the camera twist `s v` (`v = cVe eJe q̇`, camera frame), no point of `points` moves towards the border of the image
+/// less `margin_px` faster than `ξ` times its distance to it, in pixels: `|u̇_j| ≤ ξ d_j`. The point's image velocity
+/// is `(ẋ_j, ẏ_j) = L_j v` ([`point_interaction`], with the point's depth) and `u̇_j = f_x ẋ_j`, `v̇_j = f_y ẏ_j`.
+/// A point that leaves the image ends a run as surely as a joint past its limit, and faster: the visibility cost
+/// only acts within its band, which a camera moving at the joints' velocity limits crosses within a few periods.
+/// `ξ = +∞` gives 1 (no braking); a point already on or past the border stops every motion that takes it further.
+pub fn image_braking_scale(
+    intrinsics: &CameraIntrinsics,
+    margin_px: f64,
+    points: &[ImagePoint],
+    twist: &Vector6<f64>,
+    rate: f64,
+) -> f64 {
+    if !rate.is_finite() {
+        return 1.0;
+    }
+    let mut scale: f64 = 1.0;
+    for point in points {
+        let (row_x, row_y) = point_interaction(point.x, point.y, 1.0 / point.depth);
+        let (u, v) = intrinsics.normalized_to_pixel(point.x, point.y);
+        // The pixel map is affine: the difference of two images is the pixel velocity.
+        let (u_moved, v_moved) = intrinsics
+            .normalized_to_pixel(point.x + (row_x * twist)[0], point.y + (row_y * twist)[0]);
+        for (speed, position, extent) in [
+            (u_moved - u, u, intrinsics.width()),
+            (v_moved - v, v, intrinsics.height()),
+        ] {
+            let room = if speed > 0.0 {
+                extent - margin_px - position
+            } else {
+                position - margin_px
+            };
+            let allowed = rate * room.max(0.0);
+            if speed.abs() > allowed {
+                scale = scale.min(allowed / speed.abs());
+            }
+        }
+    }
+    scale
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,5 +234,73 @@ mod tests {
         }
         // It got there: within a millimetre of the limit.
         assert!(q[0] > 0.999, "{q}");
+    }
+
+    /// A 640 × 480 px image, focal length 600 px, principal point at its centre.
+    fn intrinsics() -> CameraIntrinsics {
+        CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0).unwrap()
+    }
+
+    /// A point 80 px from the right border (`x = 0.4`, depth 1 m): the camera translating at 1 m/s along `−x_c`
+    /// moves it right at `f_x / Z` = 600 px/s; at `ξ = 5 s⁻¹` it may approach at 400 px/s, so the twist is scaled by
+    /// 2/3. Moving it left, or with `ξ = +∞`, nothing is scaled; past the border the motion out stops.
+    #[test]
+    fn a_point_approaches_the_image_border_at_most_at_the_braking_rate() {
+        let near_right = [ImagePoint {
+            x: 0.4,
+            y: 0.0,
+            depth: 1.0,
+        }];
+        let towards = Vector6::new(-1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let scale = image_braking_scale(&intrinsics(), 0.0, &near_right, &towards, 5.0);
+        assert!((scale - 2.0 / 3.0).abs() < 1e-12, "{scale}");
+        // A margin of 20 px leaves 60 px: 300 px/s allowed.
+        let scale = image_braking_scale(&intrinsics(), 20.0, &near_right, &towards, 5.0);
+        assert!((scale - 0.5).abs() < 1e-12, "{scale}");
+        assert_eq!(
+            image_braking_scale(&intrinsics(), 0.0, &near_right, &(-towards), 5.0),
+            1.0
+        );
+        assert_eq!(
+            image_braking_scale(&intrinsics(), 0.0, &near_right, &towards, f64::INFINITY),
+            1.0
+        );
+        let past_border = [ImagePoint {
+            x: 0.54,
+            y: 0.0,
+            depth: 1.0,
+        }];
+        assert_eq!(
+            image_braking_scale(&intrinsics(), 0.0, &past_border, &towards, 5.0),
+            0.0
+        );
+        // Slow enough: 60 px/s against 400 px/s allowed.
+        let slow = towards * 0.1;
+        assert_eq!(
+            image_braking_scale(&intrinsics(), 0.0, &near_right, &slow, 5.0),
+            1.0
+        );
+    }
+
+    /// The camera moving towards the target spreads the points out of the image: a point at `y = −0.3` (60 px from
+    /// the top border), depth 0.5 m, under a translation of 0.5 m/s along the optical axis moves at
+    /// `f_y y ζ v_z` = −180 px/s; `ξ = 2 s⁻¹` allows 120 px/s: scale 2/3, whichever point binds first.
+    #[test]
+    fn an_approach_that_spreads_the_target_out_of_the_image_is_braked() {
+        let points = [
+            ImagePoint {
+                x: 0.0,
+                y: -0.3,
+                depth: 0.5,
+            },
+            ImagePoint {
+                x: 0.0,
+                y: 0.1,
+                depth: 0.5,
+            },
+        ];
+        let approach = Vector6::new(0.0, 0.0, 0.5, 0.0, 0.0, 0.0);
+        let scale = image_braking_scale(&intrinsics(), 0.0, &points, &approach, 2.0);
+        assert!((scale - 2.0 / 3.0).abs() < 1e-12, "{scale}");
     }
 }

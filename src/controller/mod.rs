@@ -107,8 +107,9 @@
 //!
 //! Every decision above is a prediction; what keeps the joints inside their limits when a prediction comes too late
 //! is outside the controller, where the velocity is sent: the **braking** of D25
-//! ([`ControllerParameters::braking_rate`], [`crate::avoidance::JointLimits::braking_scale`]), applied by the
-//! simulation and by [`crate::servo::VisualServo`], and reported back with [`StackController::set_sent_velocity`].
+//! ([`ControllerParameters::braking_rate`], [`crate::avoidance::JointLimits::braking_scale`]; before the border of
+//! the image too, [`ControllerParameters::brake_at_image_border`]), applied by the simulation and by
+//! [`crate::servo::VisualServo`], and reported back with [`StackController::set_sent_velocity`].
 //! Once braked at a limit, a joint the law still drives in is **locked** (D26, [`StackController::with_joint_limits`],
 //! [`ControllerParameters::lock_band`]): the law is solved again on the other joints, so the robot slides along the
 //! limit; the locks hold in the predictions too, and a change of the locked joints starts a transition (D1).

@@ -217,6 +217,10 @@ pub struct ControllerParameters {
     /// past a hard limit (8–149 per study before), every family but the uniform starts unchanged, and there 0–13 more
     /// draws converge; 5 and 20 s⁻¹ give the same figures within 3 draws (theory D25).
     pub braking_rate: f64,
+    /// Whether the braking of D25 also holds at the border of the image (default `true`): the velocity sent is scaled
+    /// so that no target point moves towards the border faster than `ξ` times its distance to it in pixels
+    /// ([`crate::avoidance::image_braking_scale`]). `false`: the joint limits alone. Measured: theory D25.
+    pub brake_at_image_border: bool,
     /// `δ`, the lock band of D26 as a fraction of each joint's range: a joint closer than `δ Δq_i` to a hard limit
     /// that the law drives towards it is held still, and the stack is solved on the other joints
     /// ([`crate::stack::StackWorkspace::lock_joints`]); the robot slides along the limit instead of stopping at it
@@ -298,6 +302,7 @@ impl Default for ControllerParameters {
             restart_rate: 1.0,
             restart_offset: 0.5,
             recentre_all_on_repeat: true,
+            brake_at_image_border: true,
             restart_centre_band: 0.05,
             restart_timeout: 5.0,
             progress_window: 5.0,

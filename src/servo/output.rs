@@ -10,13 +10,16 @@ use nalgebra::Vector6;
 pub struct ServoOutput<const N: usize> {
     /// The joint velocity to send (rad/s, m/s): the controller's, scaled so that every `|q̇_i| ≤ q̇_i^max` and, near a
     /// hard limit, every joint moving towards it keeps `|q̇_i| ≤ ξ d_i` (the braking of [D25](crate::theory#d25),
-    /// [`crate::controller::ControllerParameters::braking_rate`]); with acceleration limits, only the fraction
+    /// [`crate::controller::ControllerParameters::braking_rate`]), and every corner moving towards the border of the
+    /// image moves no faster than `ξ` times its distance to it in pixels
+    /// ([`crate::controller::ControllerParameters::brake_at_image_border`]); with acceleration limits, only the fraction
     /// [`Self::acceleration_scale`] of the change from the last velocity sent ([D31](crate::theory#d31)).
     pub velocity: JointVector<N>,
     /// The controller's velocity before scaling.
     pub unscaled_velocity: JointVector<N>,
     /// The uniform scale factor `s ∈ [0, 1]` (`velocity = s · unscaled_velocity` when the acceleration limits are
-    /// not active, [`Self::acceleration_scale`] `= 1`): the velocity limits' times the braking's.
+    /// not active, [`Self::acceleration_scale`] `= 1`): the velocity limits' times the braking's, before the joint
+    /// limits and before the border of the image ([D25](crate::theory#d25)).
     pub scale: f64,
     /// `true` when `s < 1` (a velocity limit or the braking was active).
     pub scaled: bool,

@@ -4,7 +4,7 @@
 
 use super::error::depth_error;
 use super::{Corners, ServoError, ServoOutput, VisualServo, MAX_TASKS};
-use crate::avoidance::ShapedVelocity;
+use crate::avoidance::{image_braking_scale, ShapedVelocity};
 use crate::camera::ImagePoint;
 use crate::depth::{assign_depths, DepthSource, Depths};
 use crate::feature::Observation;
@@ -204,15 +204,28 @@ impl<const N: usize> VisualServo<N> {
         let step =
             self.controller
                 .step(&self.law, &self.values, Some(cost), q, self.iteration, time)?;
-        // The velocity limits, the braking before a hard limit (D25) with the stopping distance the acceleration
-        // limits need, and the change from the velocity sent last within them (D31): the path the simulation takes.
+        // The braking before the border of the (undistorted) image (D25), the velocity limits, the braking before a
+        // hard limit (D25) with the stopping distance the acceleration limits need, and the change from the velocity
+        // sent last within them (D31): the path the simulation takes.
         let unscaled = step.velocity;
+        let braking_rate = self.controller.parameters().braking_rate;
+        let image_scale = if self.controller.parameters().brake_at_image_border {
+            image_braking_scale(
+                &self.camera.intrinsics,
+                0.0,
+                points,
+                &(camera_jacobian * unscaled),
+                braking_rate,
+            )
+        } else {
+            1.0
+        };
         let shaped = self.motion.shape(
             &self.limits,
             q,
-            &unscaled,
+            &(unscaled * image_scale),
             &self.output.velocity,
-            self.controller.parameters().braking_rate,
+            braking_rate,
             dt,
         );
         let ShapedVelocity {
@@ -225,8 +238,8 @@ impl<const N: usize> VisualServo<N> {
         let output = &mut self.output;
         output.velocity = velocity;
         output.unscaled_velocity = unscaled;
-        output.scale = scale;
-        output.scaled = scale < 1.0;
+        output.scale = image_scale * scale;
+        output.scaled = output.scale < 1.0;
         output.acceleration_scale = fraction;
         output.stopping_clamp = clamped;
         output.task_errors = task_errors;

@@ -8,7 +8,7 @@ use super::{
     incidence_reason, Outcome, Record, Run, RunLog, Scene, Sensing, SimError, SimulationParameters,
     View,
 };
-use crate::avoidance::{Cost, CostError};
+use crate::avoidance::{image_braking_scale, Cost, CostError};
 use crate::camera::{CameraError, EyeInHand};
 use crate::controller::{ControllerError, ControllerParameters, StackController, StackEvent};
 use crate::feature::Observation;
@@ -313,15 +313,42 @@ pub fn simulate_with<const N: usize>(
                     None => return Err(error.into()),
                 },
             };
-        // The robot's velocity limits, the braking before a hard limit (D25) and the acceleration limits (D31), as
-        // the servo façade shapes the velocity it sends; the controller told what was sent.
+        // The camera Jacobian the controller believes in, with a real camera.
+        let believed_jacobian = match &sensing {
+            Some(sensing) => Some(believed_camera_jacobian(
+                scene,
+                &sensing.believed,
+                &mut workspace,
+                &q,
+            )?),
+            None => None,
+        };
+        // The braking before the border of the image (D25), on the corners and the camera Jacobian the controller
+        // sees; then the robot's velocity limits, the braking before a hard limit (D25) and the acceleration limits
+        // (D31), as the servo façade shapes the velocity it sends; the controller told what was sent.
+        let braking_rate = controller.parameters().braking_rate;
+        let image_scale = if controller.parameters().brake_at_image_border {
+            let (points, jacobian) = match (&sensing, &believed_jacobian) {
+                (Some(sensing), Some(jacobian)) => (&sensing.points, jacobian),
+                _ => (&view.points, &view.camera_jacobian),
+            };
+            image_braking_scale(
+                &scene.intrinsics,
+                parameters.image_margin,
+                points,
+                &(jacobian * step.velocity),
+                braking_rate,
+            )
+        } else {
+            1.0
+        };
         let velocity = motion
             .shape(
                 &scene.limits,
                 &q,
-                &step.velocity,
+                &(step.velocity * image_scale),
                 &totals.last_sent,
-                controller.parameters().braking_rate,
+                braking_rate,
                 parameters.period,
             )
             .velocity;
@@ -333,10 +360,8 @@ pub fn simulate_with<const N: usize>(
         record.stacked.extend_from_slice(controller.stacked());
         record.predicted_cost = step.predicted_cost;
         record.criteria.extend_from_slice(controller.criteria());
-        if let Some(sensing) = &mut sensing {
-            let believed_jacobian =
-                believed_camera_jacobian(scene, &sensing.believed, &mut workspace, &q)?;
-            sensing.sent(&believed_jacobian, &velocity, parameters.period);
+        if let (Some(sensing), Some(jacobian)) = (&mut sensing, &believed_jacobian) {
+            sensing.sent(jacobian, &velocity, parameters.period);
         }
         q += velocity * parameters.period;
         let hit = scene.limits.violated_joint(&q);

@@ -13,7 +13,8 @@
 //! 4. one controller iteration ([`StackController::step`](crate::controller::StackController::step), given the
 //!    scene's limits: for the full method, a joint braked onto a limit that the law drives in is locked, D26) gives
 //!    `q̇`, scaled uniformly into the robot's velocity limits and, for the full method, braked before the hard
-//!    limits (D25, [`ControllerParameters::braking_rate`](crate::controller::ControllerParameters::braking_rate));
+//!    limits and the border of the image (D25,
+//!    [`ControllerParameters::braking_rate`](crate::controller::ControllerParameters::braking_rate));
 //!    the controller is told what was sent; explicit Euler `q ← q + Δt q̇`;
 //! 5. a joint outside `[q^min, q^max]` ends the run as **joint limit** (D11: a real robot stops at its limit), with the
 //!    joint, the iteration and the tasks stacked; when the scene has obstacles, a link–obstacle signed distance `≤ 0`

@@ -1,14 +1,21 @@
 //! Limits through the façade: joint-velocity limits scale the velocity uniformly and keep its direction, the velocity
 //! sent is fed back so that it stays continuous at stack changes while saturated, the servo brakes before a hard limit
-//! (theory D25) and slides along it with the joint locked (D26).
+//! (theory D25) and before the border of the image, and slides along a hard limit with the joint locked (D26).
 
 use super::{
     assert_fed_back_at_change, distorted_camera, paper, paper_config, run_loop, Plant,
     RaisedWristLimit,
 };
+use nalgebra::Isometry3;
+use servostack::camera::{CalibratedCamera, CameraIntrinsics};
 use servostack::controller::ControllerParameters;
+use servostack::feature::point_interaction;
 use servostack::math::JointVector;
-use servostack::servo::VisualServo;
+use servostack::robot::builtin;
+use servostack::servo::{DesiredImage, ServoConfig, ServoOutput, TaskChoice, VisualServo};
+use servostack::sim::Scene;
+use servostack::target::RectangleTarget;
+use servostack::visual_task::FourthTask;
 
 fn limited_velocity() -> JointVector<6> {
     // m/s for the three prismatic joints, rad/s for the three revolute ones.
@@ -186,5 +193,103 @@ fn the_servo_slides_along_a_hard_limit() {
     assert!(
         largest_law_jump > 0.01 && largest_step < 0.01 * largest_law_jump,
         "largest step {largest_step} for a law jump of {largest_law_jump} at a lock change"
+    );
+}
+
+/// What a test checks at each period: the corners (normalised, true) and the servo's output.
+type PeriodCheck<'a> = dyn FnMut(&[(f64, f64); 4], &ServoOutput<6>) + 'a;
+
+/// D25 at the border of the image through the façade: the classical task at 20 s⁻¹ drives the camera from 0.5 m to
+/// 0.21 m of the 0.2 × 0.1 m target, whose image then spans the frame to 34 px of its left and right borders. At that
+/// gain the corners would run to the border at four times `ξ` times their distance to it; braked (the default), no
+/// corner moves towards a border faster than `ξ` times its distance to it in pixels (its velocity from the twist sent
+/// and the depths the servo used, `L_j v`), the braking acts, and the servo converges. Unbraked, the corners run
+/// faster than that at many periods.
+#[test]
+fn the_servo_brakes_before_the_border_of_the_image() {
+    let robot = builtin::afma6().unwrap();
+    let intrinsics = CameraIntrinsics::new(600.0, 600.0, 320.0, 240.0, 640.0, 480.0).unwrap();
+    let camera = CalibratedCamera::pinhole(intrinsics);
+    let target = RectangleTarget::new(0.2, 0.1).unwrap();
+    let start = JointVector::from([0.0, 0.0, 0.0, 0.0, 0.3, 0.0]);
+    let scene = Scene::with_target_seen_from(
+        robot.chain.clone(),
+        robot.mount,
+        intrinsics,
+        target,
+        &start,
+        &Isometry3::translation(0.0, 0.0, 0.5),
+        0.1,
+    )
+    .unwrap();
+    let mut config = ServoConfig::new(
+        robot.chain,
+        robot.mount,
+        camera,
+        target,
+        DesiredImage::Pose(Isometry3::translation(0.0, 0.0, 0.21)),
+    );
+    config.tasks = TaskChoice::Classical {
+        gain: 20.0,
+        fourth: FourthTask::Auto,
+    };
+    let rate = config.controller.braking_rate;
+    assert!(config.controller.brake_at_image_border && rate.is_finite());
+    let run = |config: ServoConfig<6>, check: &mut PeriodCheck| {
+        let mut servo = VisualServo::new(config).unwrap();
+        let mut plant = Plant::new(scene.clone(), camera, start, 0.01);
+        for _ in 0..2000 {
+            let corners = plant.normalized().map(|p| (p.x, p.y));
+            let output = *servo.step(plant.time(), &plant.pixels(), &plant.q).unwrap();
+            check(&corners, &output);
+            if output.converged {
+                return true;
+            }
+            plant.apply(&output.velocity);
+        }
+        false
+    };
+    // The periods at which a corner moves towards a border faster than `ξ` times its distance to it.
+    let too_fast = |corners: &[(f64, f64); 4], output: &ServoOutput<6>| {
+        corners.iter().zip(&output.depths).any(|(&(x, y), &depth)| {
+            let (row_x, row_y) = point_interaction(x, y, 1.0 / depth);
+            let (u, v) = intrinsics.normalized_to_pixel(x, y);
+            let speeds = [
+                600.0 * (row_x * output.camera_twist)[0],
+                600.0 * (row_y * output.camera_twist)[0],
+            ];
+            [(speeds[0], u, 640.0), (speeds[1], v, 480.0)]
+                .into_iter()
+                .any(|(speed, position, extent)| {
+                    let room = if speed > 0.0 {
+                        extent - position
+                    } else {
+                        position
+                    };
+                    speed.abs() > rate * room * (1.0 + 1e-9)
+                })
+        })
+    };
+    let (mut braked_fast, mut braked) = (0, 0);
+    let converged = run(config.clone(), &mut |corners, output| {
+        braked_fast += usize::from(too_fast(corners, output));
+        braked += usize::from(output.scaled);
+    });
+    assert!(converged, "the braked servo did not converge");
+    assert_eq!(braked_fast, 0);
+    let mut unbraked = config;
+    unbraked.controller.brake_at_image_border = false;
+    let (mut unbraked_fast, mut unbraked_scaled) = (0, 0);
+    assert!(run(unbraked, &mut |corners, output| {
+        unbraked_fast += usize::from(too_fast(corners, output));
+        unbraked_scaled += usize::from(output.scaled);
+    }));
+    assert!(
+        unbraked_fast > 10,
+        "{unbraked_fast} periods too fast unbraked"
+    );
+    assert!(
+        braked > unbraked_scaled + 10,
+        "scaled at {braked} periods braked, {unbraked_scaled} unbraked"
     );
 }
