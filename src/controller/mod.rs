@@ -83,13 +83,14 @@
 //! task's error still above `ε_escape` (D23).
 //!
 //! When the whole sequence is stacked, nothing is out, no escape is due and the run no longer progresses — the robot
-//! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold), or the stacked tasks' error has stopped falling (D5)
-//! while it creeps along a limit — with a joint **locked** at a limit and the goal not reached (a stacked task's error
-//! above `ε_achieved` at rest, above the loop's convergence threshold when its error has stopped falling
-//! ([`StackController::with_goal_error`]), or the reserve task's above `ε_escape`), the run sits at a false
-//! equilibrium against the limit that sliding cannot leave. The controller **restarts** the sequence, each time (D29,
+//! has come to rest (`‖q̇_n‖ < ε_add`, the paper's threshold) with a joint **locked** at a limit, or the stacked tasks'
+//! error has stopped falling (D5), whatever the locks, while it creeps along a limit or chatters about a singular
+//! configuration — and the goal is not reached (a stacked task's error above `ε_achieved` at rest, above the loop's
+//! convergence threshold when its error has stopped falling ([`StackController::with_goal_error`]), or the reserve
+//! task's above `ε_escape`), the run sits at a false equilibrium that sliding cannot leave. The controller
+//! **restarts** the sequence, each time (D29,
 //! [`ControllerParameters::restart_rate`]): every task but the first is taken out in one change (one
-//! [`EventKind::Restart`] per task), the joints that were locked are driven to the middle of their range (past it, away
+//! [`EventKind::Restart`] per task), the joints that were locked (if any) are driven to the middle of their range (past it, away
 //! from the limit they were locked at, for ranges wider than a half turn: [`ControllerParameters::restart_offset`]) in
 //! the first task's null space — every joint with finite limits when the same joints are locked at the same limits as
 //! at the previous restart ([`ControllerParameters::recentre_all_on_repeat`]) — and the next task is pushed as before

@@ -9,10 +9,12 @@ use std::f64::consts::{FRAC_PI_2, PI};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Standstill {
     /// At rest, `‖q̇_n‖ < ε_add`: near the goal the law's velocity is proportional to the error, so a run still
-    /// converging there is at rest too; the goal counts as missed above `ε_achieved`.
+    /// converging there is at rest too; the goal counts as missed above `ε_achieved`, and the run restarts only with a
+    /// joint locked (slow gains leave a converging run at rest far from its goal).
     AtRest,
     /// The stacked error flat for `W_progress` ([`StackController::stopped_progressing`]): a run converging would not
-    /// be; the goal counts as missed above the loop's convergence threshold ([`StackController::with_goal_error`]).
+    /// be; the goal counts as missed above the loop's convergence threshold ([`StackController::with_goal_error`]),
+    /// locked joints or not.
     Flat,
 }
 
@@ -93,8 +95,9 @@ impl<const N: usize> StackController<N> {
     }
 
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
-    /// a run that no longer progresses ([`Standstill`]) with a joint locked at a limit and the goal not reached (a
-    /// stacked task's error above the standstill's threshold, or the reserve task's above `ε_escape`): every task but
+    /// a run that no longer progresses ([`Standstill`]: at rest with a joint locked at a limit, or with its error flat)
+    /// and the goal not reached (a stacked task's error above the standstill's threshold, or the reserve task's above
+    /// `ε_escape`): every task but
     /// the first is taken out in one change, each time, and the locked joints (every limited joint at a repeat,
     /// [`Self::recentred_joints`]) are driven to their targets — the middle of their ranges, past it for ranges wider
     /// than a half turn ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
@@ -119,7 +122,11 @@ impl<const N: usize> StackController<N> {
         {
             return None;
         }
+        // At rest by its velocity, a run is held against a limit only with a joint locked there; a flat error is a false
+        // equilibrium whatever the locks (the law chattering about a singular configuration, at its velocity limits).
+        let locked = *self.law_workspace.locked_joints();
         let goal_error = match standstill? {
+            Standstill::AtRest if !locked.contains(&true) => return None,
             Standstill::AtRest => parameters.escape_achieved_error,
             Standstill::Flat => self.goal_error,
         };
@@ -132,8 +139,7 @@ impl<const N: usize> StackController<N> {
             || self
                 .reserve
                 .is_some_and(|reserve| tasks[reserve].error().norm() > parameters.escape_error);
-        let locked = *self.law_workspace.locked_joints();
-        if !goal_missed || !locked.contains(&true) {
+        if !goal_missed {
             return None;
         }
         let first = *self.stacked.first()?;

@@ -20,7 +20,7 @@ fn scenario(name: &str) -> Scenario {
     Scenario::from_file(Path::new(&path)).unwrap()
 }
 
-fn families(names: &[&str]) -> Vec<Family> {
+pub(crate) fn families(names: &[&str]) -> Vec<Family> {
     standard_families()
         .into_iter()
         .filter(|f| names.contains(&f.name.as_str()))
@@ -394,7 +394,7 @@ fn restarting_from_rest_at_a_limit_converges_from_more_uniform_starts() {
 
 /// The zoo's arm `name` with its generated scenario, when the zoo is installed (`SERVOSTACK_ZOO_DIR`, as `.ci/run` sets
 /// it); otherwise `None`, after saying so.
-fn zoo_scenario(name: &str) -> Option<Scenario> {
+pub(crate) fn zoo_scenario(name: &str) -> Option<Scenario> {
     let Some(dir) = std::env::var_os("SERVOSTACK_ZOO_DIR") else {
         eprintln!("SERVOSTACK_ZOO_DIR is not set (scripts/install_zoo.sh prints it): the zoo's {name} is not loaded");
         return None;

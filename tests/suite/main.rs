@@ -56,3 +56,4 @@ mod straight_feasible;
 mod study_shards;
 mod visual_task_jacobian;
 mod your_robot;
+mod zoo_restart;
