@@ -305,12 +305,12 @@ impl<const N: usize> StackController<N> {
                 return Ok(Some(kind));
             }
             // D29 restarts a run whose error has stopped falling, or at rest (the paper's `ε_add`).
-            let standstill = if stalled {
-                Some(Standstill::Flat)
-            } else if result.stack_velocity_norm < self.parameters.settle_velocity {
-                Some(Standstill::AtRest)
-            } else {
-                None
+            let at_rest = result.stack_velocity_norm < self.parameters.settle_velocity;
+            let standstill = match (stalled, at_rest) {
+                (true, true) => Some(Standstill::FlatAtRest),
+                (true, false) => Some(Standstill::FlatMoving),
+                (false, true) => Some(Standstill::AtRest),
+                (false, false) => None,
             };
             return Ok(self.restart(law, tasks, cost, standstill, prediction.q, iteration, time));
         }

@@ -4,18 +4,23 @@
 use super::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
-/// D29: how a run with the whole sequence stacked has stopped progressing, and so the stacked tasks' error above which
-/// the restart's goal test counts the goal as missed.
+/// D29: how a run with the whole sequence stacked has stopped progressing, and so whether it needs a locked joint to
+/// restart and the stacked tasks' error above which the restart's goal test counts the goal as missed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Standstill {
-    /// At rest, `‖q̇_n‖ < ε_add`: near the goal the law's velocity is proportional to the error, so a run still
-    /// converging there is at rest too; the goal counts as missed above `ε_achieved`, and the run restarts only with a
-    /// joint locked (slow gains leave a converging run at rest far from its goal).
+    /// At rest, `‖q̇_n‖ < ε_add`, the error still falling: near the goal the law's velocity is proportional to the
+    /// error, so a run still converging there is at rest too; the goal counts as missed above `ε_achieved`, and the
+    /// run restarts only with a joint locked (slow gains leave a converging run at rest far from its goal).
     AtRest,
-    /// The stacked error flat for `W_progress` ([`StackController::stopped_progressing`]): a run converging would not
-    /// be; the goal counts as missed above the loop's convergence threshold ([`StackController::with_goal_error`]),
-    /// locked joints or not.
-    Flat,
+    /// The stacked error flat for `W_progress` ([`StackController::stopped_progressing`]) at rest: a run converging
+    /// would not be flat; the goal counts as missed above the loop's convergence threshold
+    /// ([`StackController::with_goal_error`]), with a joint locked (without one, a measured error is flat at the goal
+    /// itself under the camera's noise).
+    FlatAtRest,
+    /// The stacked error flat while the robot moves (`‖q̇_n‖ ≥ ε_add`): it creeps along a limit or chatters about a
+    /// singular configuration at its velocity limits; the goal counts as missed above the convergence threshold, locked
+    /// joints or not.
+    FlatMoving,
 }
 
 impl<const N: usize> StackController<N> {
@@ -95,7 +100,8 @@ impl<const N: usize> StackController<N> {
     }
 
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
-    /// a run that no longer progresses ([`Standstill`]: at rest with a joint locked at a limit, or with its error flat)
+    /// a run that no longer progresses ([`Standstill`]: at rest with a joint locked at a limit, or with its error flat
+    /// while it moves)
     /// and the goal not reached (a stacked task's error above the standstill's threshold, or the reserve task's above
     /// `ε_escape`): every task but
     /// the first is taken out in one change, each time, and the locked joints (every limited joint at a repeat,
@@ -122,13 +128,13 @@ impl<const N: usize> StackController<N> {
         {
             return None;
         }
-        // At rest by its velocity, a run is held against a limit only with a joint locked there; a flat error is a false
+        // At rest, a run is held against a limit only with a joint locked there; a flat error while moving is a false
         // equilibrium whatever the locks (the law chattering about a singular configuration, at its velocity limits).
         let locked = *self.law_workspace.locked_joints();
         let goal_error = match standstill? {
-            Standstill::AtRest if !locked.contains(&true) => return None,
+            Standstill::AtRest | Standstill::FlatAtRest if !locked.contains(&true) => return None,
             Standstill::AtRest => parameters.escape_achieved_error,
-            Standstill::Flat => self.goal_error,
+            Standstill::FlatAtRest | Standstill::FlatMoving => self.goal_error,
         };
         // Short of the goal: a stacked task above the threshold, or the reserve task's corners off their goal. With a
         // joint locked, the corners can rest within `ε_escape` of their goal while a stacked task is not converged.

@@ -255,11 +255,13 @@ fn holding_keeps_failed_uniform_runs_inside_the_limits() {
 
 /// D26 lock: on the UR5e, braked at a limit (D25), a run stops there with the whole robot; sliding along it (the
 /// default) lets the other joints go on, so more uniform starts converge, and none that converged without the lock is
-/// lost.
+/// lost. The restart of D29 is off in both: without the lock it restarts runs whose error stays flat, and wins some
+/// late (draw 18 of this sample, after three restarts at 7 471 of 8 000 iterations, measured), which are not the lock's.
 #[test]
 fn sliding_along_the_limits_converges_from_more_uniform_starts() {
-    let sliding = scenario("ur5e_limits");
+    let mut sliding = scenario("ur5e_limits");
     assert!(sliding.controller.lock_band > 0.0);
+    sliding.controller.restart_rate = 0.0;
     let mut stopping = sliding.clone();
     stopping.controller.lock_band = 0.0;
     let outcomes = |scenario: &Scenario| full_method_outcomes(scenario, "uniform", 32, 3);

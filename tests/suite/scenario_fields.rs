@@ -272,6 +272,8 @@ fn bases() -> Vec<(&'static str, Scenario)> {
             "ur5e, a repeated restart",
             data("ur5e_repeated_restart.toml"),
         ),
+        // A start from which the target leaves the image unless braked before its border (D25).
+        ("afma6, the image border", data("afma6_image_border.toml")),
     ]
 }
 
