@@ -8,7 +8,7 @@ use servostack::scenario::{RobotSpec, RunKind, Scenario, Zoo};
 use servostack::sim::SummaryOnly;
 use servostack::study::{
     optional_families, standard_families, Family, MethodResult, Perturbation, Study, StudyError,
-    POSE_TOLERANCE_DEG, POSE_TOLERANCE_M,
+    StudyResult, POSE_TOLERANCE_DEG, POSE_TOLERANCE_M,
 };
 use std::path::Path;
 
@@ -20,7 +20,7 @@ fn scenario(name: &str) -> Scenario {
     Scenario::from_file(Path::new(&path)).unwrap()
 }
 
-pub(crate) fn families(names: &[&str]) -> Vec<Family> {
+fn families(names: &[&str]) -> Vec<Family> {
     standard_families()
         .into_iter()
         .filter(|f| names.contains(&f.name.as_str()))
@@ -474,6 +474,15 @@ fn a_run_that_creeps_along_a_limit_restarts_without_resting() {
     );
 }
 
+/// The full method's runs on 40 uniform draws of `scenario`, seed 5 (the zoo's tests of the controller's rules).
+pub(crate) fn full_method_uniform(scenario: &Scenario) -> StudyResult {
+    Study::new(scenario, families(&["uniform"]), 40, 5)
+        .unwrap()
+        .with_methods(&[RunKind::FullMethod])
+        .run()
+        .unwrap()
+}
+
 /// The full method's uniform runs on `with` and on `without` (a rule switched off), 40 draws of seed 5: asserts that
 /// no draw converges without the rule only, and returns the results of the draws that converge with it only,
 /// `(with, without)`.
@@ -482,14 +491,7 @@ fn uniform_draws_gained(
     without: &Scenario,
     rule: &str,
 ) -> Vec<(MethodResult, MethodResult)> {
-    let run = |scenario: &Scenario| {
-        Study::new(scenario, families(&["uniform"]), 40, 5)
-            .unwrap()
-            .with_methods(&[RunKind::FullMethod])
-            .run()
-            .unwrap()
-    };
-    let (with, without) = (run(with), run(without));
+    let (with, without) = (full_method_uniform(with), full_method_uniform(without));
     let mut gained = Vec::new();
     for (draw, other) in with.families[0]
         .draws
@@ -550,12 +552,7 @@ fn a_run_resting_near_the_goal_against_a_limit_restarts() {
         let Some(scenario) = zoo_scenario(arm) else {
             return;
         };
-        let study = Study::new(&scenario, families(&["uniform"]), 40, 5)
-            .unwrap()
-            .with_methods(&[RunKind::FullMethod])
-            .run()
-            .unwrap();
-        for draw in &study.families[0].draws {
+        for draw in &full_method_uniform(&scenario).families[0].draws {
             let run = &draw.methods[0];
             assert!(
                 run.converged()

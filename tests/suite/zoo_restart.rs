@@ -1,9 +1,7 @@
 //! D29 on the zoo's arms without a locked joint: a run whose stacked error has stopped falling short of its goal
 //! restarts, whatever the locks. Outcomes over draws of the zoo's generated scenarios (with the zoo installed).
 
-use crate::convergence_domain::{families, zoo_scenario};
-use servostack::scenario::RunKind;
-use servostack::study::Study;
+use crate::convergence_domain::{full_method_uniform, zoo_scenario};
 
 /// On the zoo's Tiago Pro and xArm7, runs came to a false equilibrium with every task stacked and no joint locked:
 /// the law chattering about a singular configuration at the velocity limits, its sign flipping every period, the
@@ -15,12 +13,7 @@ fn a_run_whose_error_stops_falling_restarts_without_a_locked_joint() {
         let Some(scenario) = zoo_scenario(arm) else {
             return;
         };
-        let study = Study::new(&scenario, families(&["uniform"]), 40, 5)
-            .unwrap()
-            .with_methods(&[RunKind::FullMethod])
-            .run()
-            .unwrap();
-        for draw in &study.families[0].draws {
+        for draw in &full_method_uniform(&scenario).families[0].draws {
             let run = &draw.methods[0];
             assert!(
                 run.outcome != "max_iterations" || run.restart_take_outs > 0,
