@@ -101,10 +101,9 @@ impl<const N: usize> StackController<N> {
 
     /// D29: with the whole sequence stacked, nothing out and no escape due (called after the escape of D23 declined),
     /// a run that no longer progresses ([`Standstill`]: at rest with a joint locked at a limit, or with its error flat
-    /// while it moves)
-    /// and the goal not reached (a stacked task's error above the standstill's threshold, or the reserve task's above
-    /// `ε_escape`): every task but
-    /// the first is taken out in one change, each time, and the locked joints (every limited joint at a repeat,
+    /// while it moves) and the goal not reached (a stacked task's error above the standstill's threshold, or the
+    /// reserve task's above `ε_escape`): every task but the first is taken out in one change, each time, and the
+    /// locked joints, if any (every limited joint at a repeat,
     /// [`Self::recentred_joints`]) are driven to their targets — the middle of their ranges, past it for ranges wider
     /// than a half turn ([`Self::recentring_targets`], [`Self::recentring_cost`]) — before the sequence goes on.
     #[allow(clippy::too_many_arguments)]
